@@ -1,0 +1,1 @@
+//! PLACEHOLDER: EXR reading with the exr crate.

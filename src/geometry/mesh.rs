@@ -1,0 +1,162 @@
+use glam::{Vec2, Vec3};
+use thiserror::Error;
+
+use super::Aabb;
+
+/// Why a mesh was refused.
+#[derive(Debug, Error, PartialEq)]
+pub enum MeshError {
+    #[error("vertex {index} has a non-finite coordinate ({value:?})")]
+    NonFiniteVertex { index: usize, value: [f32; 3] },
+    #[error("triangle {triangle} refers to vertex {vertex}, but the mesh has only {count} vertices")]
+    IndexOutOfRange { triangle: usize, vertex: u32, count: usize },
+    #[error("the mesh has {normals} normals for {vertices} vertices")]
+    NormalCount { normals: usize, vertices: usize },
+    #[error("the mesh has {uvs} texture coordinates for {vertices} vertices")]
+    UvCount { uvs: usize, vertices: usize },
+    #[error("the mesh has no triangles")]
+    Empty,
+    #[error("the mesh has {0} vertices; at most 2^32-1 are supported")]
+    TooManyVertices(usize),
+}
+
+/// An indexed triangle mesh in world space, owned by Rust and shared (not copied) with Embree and
+/// the in-house BVH.
+///
+/// Embree reads vertex buffers with 16-byte loads, so the last vertex must be followed by at least
+/// 4 readable bytes: the position array always carries one extra padding vertex after the real
+/// ones. `positions()` hides it.
+#[derive(Debug, Clone)]
+pub struct TriangleMesh {
+    padded_positions: Vec<Vec3>,
+    indices: Vec<[u32; 3]>,
+    normals: Option<Vec<Vec3>>,
+    uvs: Option<Vec<Vec2>>,
+}
+
+impl TriangleMesh {
+    /// Validates and takes ownership: every vertex finite, every index in range, attribute
+    /// arrays (if any) one per vertex. Degenerate (zero-area) triangles are kept; they are never hit.
+    pub fn new(
+        positions: Vec<Vec3>,
+        indices: Vec<[u32; 3]>,
+        normals: Option<Vec<Vec3>>,
+        uvs: Option<Vec<Vec2>>,
+    ) -> Result<Self, MeshError> {
+        if indices.is_empty() {
+            return Err(MeshError::Empty);
+        }
+        if positions.len() >= u32::MAX as usize {
+            return Err(MeshError::TooManyVertices(positions.len()));
+        }
+        for (i, p) in positions.iter().enumerate() {
+            if !p.is_finite() {
+                return Err(MeshError::NonFiniteVertex { index: i, value: p.to_array() });
+            }
+        }
+        for (t, tri) in indices.iter().enumerate() {
+            for &v in tri {
+                if v as usize >= positions.len() {
+                    return Err(MeshError::IndexOutOfRange { triangle: t, vertex: v, count: positions.len() });
+                }
+            }
+        }
+        if let Some(n) = &normals {
+            if n.len() != positions.len() {
+                return Err(MeshError::NormalCount { normals: n.len(), vertices: positions.len() });
+            }
+        }
+        if let Some(uv) = &uvs {
+            if uv.len() != positions.len() {
+                return Err(MeshError::UvCount { uvs: uv.len(), vertices: positions.len() });
+            }
+        }
+        // Normals that are zero or non-finite would poison shading frames: drop them all rather
+        // than shade some triangles smoothly and others not.
+        let normals = normals.filter(|ns| ns.iter().all(|n| n.is_finite() && n.length_squared() > 0.0));
+        let mut padded_positions = positions;
+        padded_positions.reserve_exact(1);
+        padded_positions.push(Vec3::ZERO);
+        Ok(TriangleMesh { padded_positions, indices, normals, uvs })
+    }
+
+    /// Vertex positions, without the padding vertex.
+    #[inline]
+    pub fn positions(&self) -> &[Vec3] {
+        &self.padded_positions[..self.padded_positions.len() - 1]
+    }
+    /// Positions including the trailing padding vertex (for Embree's shared buffers).
+    pub fn padded_positions(&self) -> &[Vec3] {
+        &self.padded_positions
+    }
+    #[inline]
+    pub fn indices(&self) -> &[[u32; 3]] {
+        &self.indices
+    }
+    pub fn normals(&self) -> Option<&[Vec3]> {
+        self.normals.as_deref()
+    }
+    pub fn uvs(&self) -> Option<&[Vec2]> {
+        self.uvs.as_deref()
+    }
+    pub fn vertex_count(&self) -> usize {
+        self.padded_positions.len() - 1
+    }
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len()
+    }
+    #[inline]
+    pub fn triangle(&self, prim: u32) -> [Vec3; 3] {
+        let [a, b, c] = self.indices[prim as usize];
+        let p = &self.padded_positions;
+        [p[a as usize], p[b as usize], p[c as usize]]
+    }
+    pub fn triangle_area(&self, prim: u32) -> f32 {
+        let [a, b, c] = self.triangle(prim);
+        0.5 * (b - a).cross(c - a).length()
+    }
+    pub fn surface_area(&self) -> f64 {
+        (0..self.indices.len() as u32).map(|i| self.triangle_area(i) as f64).sum()
+    }
+    pub fn bounds(&self) -> Aabb {
+        let mut b = Aabb::EMPTY;
+        for p in self.positions() {
+            b.grow(*p);
+        }
+        b
+    }
+    /// Bytes held by this mesh's arrays.
+    pub fn memory_bytes(&self) -> usize {
+        self.padded_positions.capacity() * 12
+            + self.indices.capacity() * 12
+            + self.normals.as_ref().map_or(0, |n| n.capacity() * 12)
+            + self.uvs.as_ref().map_or(0, |n| n.capacity() * 8)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejects_bad_meshes() {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        assert!(TriangleMesh::new(p.clone(), vec![[0, 1, 2]], None, None).is_ok());
+        assert_eq!(
+            TriangleMesh::new(p.clone(), vec![[0, 1, 3]], None, None).unwrap_err(),
+            MeshError::IndexOutOfRange { triangle: 0, vertex: 3, count: 3 }
+        );
+        let mut bad = p.clone();
+        bad[1].x = f32::NAN;
+        assert!(matches!(TriangleMesh::new(bad, vec![[0, 1, 2]], None, None), Err(MeshError::NonFiniteVertex { index: 1, .. })));
+        assert_eq!(TriangleMesh::new(p, vec![], None, None).unwrap_err(), MeshError::Empty);
+    }
+
+    #[test]
+    fn padding_vertex_is_hidden() {
+        let m = TriangleMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]], None, None).unwrap();
+        assert_eq!(m.positions().len(), 3);
+        assert_eq!(m.padded_positions().len(), 4);
+        assert!((m.triangle_area(0) - 0.5).abs() < 1e-6);
+    }
+}

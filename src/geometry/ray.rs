@@ -1,0 +1,173 @@
+use glam::Vec3;
+
+/// A ray `o + t d` for `t` in `[t_min, t_max]`. `d` need not be normalised, but every integrator
+/// in plexus passes unit directions so that `t` is a distance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    pub o: Vec3,
+    pub d: Vec3,
+    pub t_min: f32,
+    pub t_max: f32,
+}
+
+impl Ray {
+    pub fn new(o: Vec3, d: Vec3) -> Self {
+        Ray { o, d, t_min: 0.0, t_max: f32::INFINITY }
+    }
+    pub fn segment(o: Vec3, d: Vec3, t_max: f32) -> Self {
+        Ray { o, d, t_min: 0.0, t_max }
+    }
+    #[inline]
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.o + self.d * t
+    }
+}
+
+/// The closest hit reported by an accelerator. Barycentrics follow Embree's convention:
+/// the hit point is `(1 - b1 - b2) v0 + b1 v1 + b2 v2`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    pub geom_id: u32,
+    pub prim_id: u32,
+    pub b1: f32,
+    pub b2: f32,
+}
+
+/// Axis-aligned bounding box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Default for Aabb {
+    fn default() -> Self {
+        Aabb::EMPTY
+    }
+}
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
+    pub fn from_point(p: Vec3) -> Self {
+        Aabb { min: p, max: p }
+    }
+    pub fn grow(&mut self, p: Vec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+    pub fn union(&self, o: &Aabb) -> Aabb {
+        Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
+    }
+    pub fn is_empty(&self) -> bool {
+        self.min.x > self.max.x || self.min.y > self.max.y || self.min.z > self.max.z
+    }
+    pub fn extent(&self) -> Vec3 {
+        if self.is_empty() {
+            Vec3::ZERO
+        } else {
+            self.max - self.min
+        }
+    }
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+    pub fn surface_area(&self) -> f32 {
+        let e = self.extent();
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+    }
+    /// Centre and radius of a sphere that contains the box.
+    pub fn bounding_sphere(&self) -> (Vec3, f32) {
+        if self.is_empty() {
+            return (Vec3::ZERO, 0.0);
+        }
+        let c = self.center();
+        (c, (self.max - c).length())
+    }
+}
+
+/// Offsets `p` along the normal `n` by the error bound `p_error`, on the side that `w` points to,
+/// then rounds each coordinate one ulp further away (pbrt-v4's OffsetRayOrigin, Sec. 6.8.6), so a
+/// ray spawned from the result cannot re-intersect the surface it leaves at any scene scale.
+pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
+    let d = n.abs().dot(p_error);
+    let mut offset = n * d;
+    if w.dot(n) < 0.0 {
+        offset = -offset;
+    }
+    let mut po = p + offset;
+    for i in 0..3 {
+        if offset[i] > 0.0 {
+            po[i] = next_float_up(po[i]);
+        } else if offset[i] < 0.0 {
+            po[i] = next_float_down(po[i]);
+        }
+    }
+    po
+}
+
+/// A ray leaving the point `(p, p_error)` with geometric normal `n` in direction `d`.
+pub fn spawn_ray(p: Vec3, p_error: Vec3, n: Vec3, d: Vec3) -> Ray {
+    Ray::new(offset_ray_origin(p, p_error, n, d), d)
+}
+
+/// A shadow ray from `(p, p_error, n)` towards the point `(q, q_error, nq)`; both ends are offset so
+/// that neither surface occludes the segment. The direction is normalised; `t_max` stops just short
+/// of the offset target.
+pub fn spawn_ray_to(p: Vec3, p_error: Vec3, n: Vec3, q: Vec3, q_error: Vec3, nq: Vec3) -> Ray {
+    let po = offset_ray_origin(p, p_error, n, q - p);
+    let qo = offset_ray_origin(q, q_error, nq, p - q);
+    let d = qo - po;
+    let len = d.length();
+    if !(len > 0.0) || !len.is_finite() {
+        return Ray { o: po, d: Vec3::Z, t_min: 0.0, t_max: 0.0 };
+    }
+    Ray { o: po, d: d / len, t_min: 0.0, t_max: len * (1.0 - 1e-4) }
+}
+
+#[inline]
+pub fn next_float_up(v: f32) -> f32 {
+    if v.is_infinite() && v > 0.0 {
+        return v;
+    }
+    let v = if v == -0.0 { 0.0 } else { v };
+    let bits = v.to_bits();
+    let bits = if v >= 0.0 { bits + 1 } else { bits - 1 };
+    f32::from_bits(bits)
+}
+
+#[inline]
+pub fn next_float_down(v: f32) -> f32 {
+    if v.is_infinite() && v < 0.0 {
+        return v;
+    }
+    let v = if v == 0.0 { -0.0 } else { v };
+    let bits = v.to_bits();
+    let bits = if v > 0.0 { bits - 1 } else { bits + 1 };
+    f32::from_bits(bits)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn next_float_moves_one_ulp() {
+        assert!(next_float_up(1.0) > 1.0);
+        assert!(next_float_down(1.0) < 1.0);
+        assert!(next_float_up(0.0) > 0.0);
+        assert!(next_float_down(0.0) < 0.0);
+        assert!(next_float_up(-1.0) > -1.0);
+        assert_eq!(next_float_up(1.0).to_bits() - 1.0f32.to_bits(), 1);
+    }
+
+    #[test]
+    fn offset_leaves_the_surface_on_the_side_of_w() {
+        let p = Vec3::new(1e5, 2.0, 3.0);
+        let err = Vec3::splat(1e5 * 1e-6);
+        let n = Vec3::Y;
+        let up = offset_ray_origin(p, err, n, Vec3::Y);
+        let down = offset_ray_origin(p, err, n, -Vec3::Y);
+        assert!(up.y > p.y && down.y < p.y);
+    }
+}

@@ -1,0 +1,20 @@
+//! plexus: a physically based renderer for difficult light transport.
+//!
+//! See DESIGN.md (shared) and README.md for the architecture. Module boundaries: `accel` answers
+//! ray queries (Embree or the in-house BVH), `geometry` holds rays and hits, `sampling` holds every
+//! warp with its pdf and inverse, `scene` parses and builds scenes, `camera`/`material`/`light`
+//! sample and evaluate, `film` accumulates and writes images, `integrator` holds light transport,
+//! `stats` and `metrics` measure.
+
+pub mod accel;
+pub mod camera;
+pub mod film;
+pub mod geometry;
+pub mod integrator;
+pub mod light;
+pub mod material;
+pub mod metrics;
+pub mod sampling;
+pub mod scene;
+pub mod spectrum;
+pub mod stats;
