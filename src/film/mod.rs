@@ -100,7 +100,11 @@ impl Accumulator {
         Image {
             width: self.width,
             height: self.height,
-            pixels: self.sums.iter().map(|s| Rgb::new((s[0] * scale) as f32, (s[1] * scale) as f32, (s[2] * scale) as f32)).collect(),
+            pixels: self
+                .sums
+                .iter()
+                .map(|s| Rgb::new((s[0] * scale) as f32, (s[1] * scale) as f32, (s[2] * scale) as f32))
+                .collect(),
         }
     }
     /// The image with each pixel divided by its own count (`counts[i]` samples at pixel i).

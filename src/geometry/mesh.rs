@@ -148,7 +148,10 @@ mod tests {
         );
         let mut bad = p.clone();
         bad[1].x = f32::NAN;
-        assert!(matches!(TriangleMesh::new(bad, vec![[0, 1, 2]], None, None), Err(MeshError::NonFiniteVertex { index: 1, .. })));
+        assert!(matches!(
+            TriangleMesh::new(bad, vec![[0, 1, 2]], None, None),
+            Err(MeshError::NonFiniteVertex { index: 1, .. })
+        ));
         assert_eq!(TriangleMesh::new(p, vec![], None, None).unwrap_err(), MeshError::Empty);
     }
 

@@ -49,9 +49,24 @@ mod tests {
 
     #[test]
     fn streams_are_reproducible_and_distinct() {
-        let a: Vec<f32> = (0..4).map({ let mut r = Rng::new(7, 3); move |_| r.uniform() }).collect();
-        let b: Vec<f32> = (0..4).map({ let mut r = Rng::new(7, 3); move |_| r.uniform() }).collect();
-        let c: Vec<f32> = (0..4).map({ let mut r = Rng::new(7, 4); move |_| r.uniform() }).collect();
+        let a: Vec<f32> = (0..4)
+            .map({
+                let mut r = Rng::new(7, 3);
+                move |_| r.uniform()
+            })
+            .collect();
+        let b: Vec<f32> = (0..4)
+            .map({
+                let mut r = Rng::new(7, 3);
+                move |_| r.uniform()
+            })
+            .collect();
+        let c: Vec<f32> = (0..4)
+            .map({
+                let mut r = Rng::new(7, 4);
+                move |_| r.uniform()
+            })
+            .collect();
         assert_eq!(a, b);
         assert_ne!(a, c);
         assert!(a.iter().all(|&x| (0.0..1.0).contains(&x)));

@@ -1,0 +1,3 @@
+fn main() {
+    let _ = (bindgen::builder, cc::Build::new);
+}
