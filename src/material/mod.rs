@@ -4,6 +4,10 @@
 //! them. A material's lobe probabilities come from one helper that `sample`, `pdf` and `invert`
 //! all call, so they cannot drift apart.
 
+mod fresnel;
+
+pub use fresnel::{conductor_index_from_colours, fresnel_conductor, fresnel_dielectric, FresnelDielectric};
+
 use serde::Serialize;
 
 use crate::spectrum::Rgb;
@@ -76,5 +80,20 @@ impl Material {
     /// be made at such a vertex.
     pub fn is_specular(&self) -> bool {
         matches!(self, Material::Mirror { .. } | Material::Dielectric { .. })
+    }
+}
+
+impl Material {
+    /// A GGX rough conductor whose normal-incidence reflectance is `colour` (per channel, clamped to
+    /// [0, 0.9999]); the colour also serves as the edge tint, so the complex index comes from
+    /// Gulbrandsen's (2014) mapping with r = g = colour.
+    pub fn conductor_from_colour(alpha: f32, colour: Rgb) -> Material {
+        Material::conductor_from_colours(alpha, colour, colour)
+    }
+    /// A GGX rough conductor from a normal-incidence `reflectivity` and a grazing `edge_tint`
+    /// (Gulbrandsen 2014): edge tint 0 gives a dielectric-like falloff, 1 the strongest tint.
+    pub fn conductor_from_colours(alpha: f32, reflectivity: Rgb, edge_tint: Rgb) -> Material {
+        let (eta, k) = conductor_index_from_colours(reflectivity, edge_tint);
+        Material::RoughConductor { alpha, eta, k }
     }
 }
