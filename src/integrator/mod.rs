@@ -2,6 +2,12 @@
 //! papers), a per-thread kernel and a driver; all of them render a `Scene` into an `Image` and
 //! report `Counters`. None of them knows which accelerator answers its rays.
 
+pub mod bdpt;
+pub mod driver;
+pub mod light_tracing;
+pub mod pss;
+pub mod pt;
+
 use std::time::Duration;
 
 use serde::Serialize;
@@ -68,6 +74,8 @@ pub enum RenderError {
     Settings(String),
     #[error("could not create the thread pool: {0}")]
     ThreadPool(String),
+    #[error("unknown integrator '{0}': expected one of {names}", names = INTEGRATOR_NAMES.join(", "))]
+    UnknownIntegrator(String),
 }
 
 /// A light-transport algorithm, configured and ready to render any scene.
@@ -77,4 +85,89 @@ pub trait Integrator: Send + Sync {
     /// The settings in effect, for the stats report.
     fn settings_json(&self) -> serde_json::Value;
     fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError>;
+}
+
+/// The names `create` accepts, in the order `plexus render --help` lists them.
+pub const INTEGRATOR_NAMES: &[&str] = &["pt", "bdpt", "light"];
+
+/// The integrator called `name`, configured from `params` (the scene's `[integrator]` table merged
+/// with `--set` overrides; unknown keys are errors).
+pub fn create(name: &str, params: &toml::Table) -> Result<Box<dyn Integrator>, RenderError> {
+    match name {
+        "pt" => Ok(Box::new(pt::PathTracer::from_params(params)?)),
+        "bdpt" => Ok(Box::new(bdpt::Bdpt::from_params(params)?)),
+        "light" => Ok(Box::new(light_tracing::LightTracer::from_params(params)?)),
+        other => Err(RenderError::UnknownIntegrator(other.to_string())),
+    }
+}
+
+/// Deserialises an integrator's settings struct from its parameter table; the message of an
+/// unknown key or a wrong type names the integrator, the key and what was expected.
+pub fn settings_from_table<T: serde::de::DeserializeOwned>(
+    integrator: &str,
+    params: &toml::Table,
+) -> Result<T, RenderError> {
+    T::deserialize(toml::Value::Table(params.clone()))
+        .map_err(|e| RenderError::Settings(format!("[integrator] {integrator}: {}", e.message().trim_end())))
+}
+
+/// Parses one `--set key=value` override. The value is read as a TOML scalar (`16`, `0.5`,
+/// `true`, `"text"`); anything that is not valid TOML is taken as a bare string, so
+/// `--set mis=balance` works without quotes.
+pub fn parse_set(assignment: &str) -> Result<(String, toml::Value), RenderError> {
+    let Some((key, value)) = assignment.split_once('=') else {
+        return Err(RenderError::Settings(format!("--set '{assignment}': expected key=value")));
+    };
+    let key = key.trim();
+    if key.is_empty() || !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+        return Err(RenderError::Settings(format!(
+            "--set '{assignment}': the key must be a plain setting name (letters, digits, '_', '-')"
+        )));
+    }
+    let value = value.trim();
+    let parsed = toml::from_str::<toml::Table>(&format!("v = {value}"))
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(value.to_string()));
+    Ok((key.to_string(), parsed))
+}
+
+/// The scene's integrator parameters with the `--set` overrides applied on top.
+pub fn merge_params(scene_params: &toml::Table, overrides: &[(String, toml::Value)]) -> toml::Table {
+    let mut params = scene_params.clone();
+    for (k, v) in overrides {
+        params.insert(k.clone(), v.clone());
+    }
+    params
+}
+
+#[cfg(test)]
+mod registry_tests {
+    use super::*;
+
+    #[test]
+    fn unknown_integrator_lists_the_valid_names() {
+        let err = create("nope", &toml::Table::new()).err().expect("unknown name").to_string();
+        assert!(err.contains("'nope'") && err.contains("pt"), "{err}");
+        for name in INTEGRATOR_NAMES {
+            assert!(create(name, &toml::Table::new()).is_ok(), "{name} builds with defaults");
+        }
+    }
+
+    #[test]
+    fn set_values_are_toml_scalars_or_bare_strings() {
+        assert_eq!(parse_set("max_depth=8").expect("int").1, toml::Value::Integer(8));
+        assert_eq!(parse_set("x = 0.5").expect("float").1, toml::Value::Float(0.5));
+        assert_eq!(parse_set("b=true").expect("bool").1, toml::Value::Boolean(true));
+        assert_eq!(parse_set("mis=balance").expect("bare").1, toml::Value::String("balance".into()));
+        assert_eq!(parse_set("mis=\"power\"").expect("quoted").1, toml::Value::String("power".into()));
+        assert!(parse_set("novalue").is_err());
+        assert!(parse_set("=3").is_err());
+        let merged = merge_params(
+            &toml::from_str("max_depth = 3\nrr_depth = 2").expect("toml"),
+            &[parse_set("max_depth=9").expect("set")],
+        );
+        assert_eq!(merged["max_depth"], toml::Value::Integer(9));
+        assert_eq!(merged["rr_depth"], toml::Value::Integer(2));
+    }
 }

@@ -1,0 +1,374 @@
+//! The parallel render driver every integrator reuses: a thread pool, a deterministic partition of
+//! the work, per-worker film and counters merged in a fixed order, sample and time budgets, and
+//! progress reports.
+//!
+//! # The partition
+//!
+//! An integrator describes its work as `U` *units* (image tiles, batches of light paths, Markov
+//! chains) that are all visited once per *pass*. The driver runs passes until the budget is spent:
+//! a fixed number of passes for sample budgets, or passes while the deadline allows for time
+//! budgets. Work item `(pass, unit)` has the random stream `Rng::new(seed, pass · U + unit)`.
+//!
+//! Unit `u` always runs on worker *slot* `u mod threads`, in increasing unit order within a pass and
+//! in increasing pass order. Each slot owns one [`Accumulator`] (it may add to any pixel: splats are
+//! allowed) and one [`Counters`]; at the end the slots are merged in slot order. Nothing depends on
+//! which OS thread executes a slot or on timing, so the same seed and thread count give a
+//! bit-identical image. When each unit only writes to its own pixels (a path tracer's tiles), every
+//! pixel is written by exactly one slot and the image is even independent of the thread count.
+//!
+//! # How the integrators fit
+//!
+//! - **Path tracing / BDPT**: a unit is a tile; an item renders `spp_per_pass` samples for each of
+//!   the tile's pixels with the item's stream. [`ImagePlan`] computes tiles and the pass schedule.
+//! - **Light tracing**: a unit is a batch of light subpaths (e.g. as many as a tile has pixels
+//!   times `spp_per_pass`); each item splats to arbitrary pixels of its slot's accumulator, and the
+//!   image is scaled by 1 / (total light paths) at the end.
+//! - **MCMC**: a unit is a Markov chain whose state (sampler, current path, its contribution)
+//!   lives in the unit value `U` itself, which the driver hands back mutably to the kernel on every
+//!   pass (`units: Vec<U>`) and returns at the end; an item is a chain *segment* of a fixed number
+//!   of mutations. The chain keeps its own `Rng::new(seed, chain)` inside `U` and may ignore the
+//!   item stream. Mutations per pixel translate into `passes × units × segment length`; a time
+//!   budget just runs more segments. Per-slot state `S` (scratch buffers, per-slot statistics) is
+//!   created once per slot and returned in slot order for a deterministic merge.
+//!
+//! Every worker thread of the pool sets flush-to-zero / denormals-are-zero in its start handler
+//! (Embree wants it, and it keeps both accelerators' arithmetic identical), and every item runs
+//! inside the pool, so no ray is traced from a thread without the flags.
+
+use std::time::{Duration, Instant};
+
+use rayon::{ThreadPool, ThreadPoolBuilder};
+
+use super::{Budget, Progress, RenderError, RenderJob};
+use crate::film::Accumulator;
+use crate::sampling::Rng;
+use crate::stats::Counters;
+
+/// Side length in pixels of the square tiles image-space integrators split the film into.
+pub const TILE_SIZE: u32 = 16;
+
+/// A pass should hold at least this many pixel samples, so that the per-pass synchronisation
+/// costs nothing measurable even for tiny images.
+const MIN_SAMPLES_PER_PASS: u64 = 1 << 16;
+
+/// How many passes to run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Passes {
+    /// Exactly this many passes.
+    Count(u64),
+    /// Passes until this many seconds have elapsed since the run started: a new pass starts only
+    /// if the mean pass duration so far predicts it ends before the deadline (at least one pass
+    /// always runs).
+    Seconds(f64),
+}
+
+/// One work item: which pass and which unit, and its random stream.
+#[derive(Clone, Copy, Debug)]
+pub struct WorkItem {
+    pub pass: u64,
+    pub unit: usize,
+    /// `pass · units + unit`: the item's stream index.
+    pub stream: u64,
+    pub seed: u64,
+}
+
+impl WorkItem {
+    /// The item's own random stream, derived from (seed, item index) only.
+    pub fn rng(&self) -> Rng {
+        Rng::new(self.seed, self.stream)
+    }
+}
+
+/// What a worker slot owns: its film, its counters and the integrator's per-slot state.
+pub struct Slot<S> {
+    /// Slot index, 0..threads.
+    pub index: usize,
+    pub film: Accumulator,
+    pub counters: Counters,
+    pub state: S,
+}
+
+/// What a run produced.
+pub struct RunOutput<U, S> {
+    /// The slots' films summed in slot order.
+    pub film: Accumulator,
+    /// The slots' counters summed in slot order.
+    pub counters: Counters,
+    /// The units, in unit order, with whatever state the kernel left in them.
+    pub units: Vec<U>,
+    /// Per-slot states, in slot order.
+    pub slot_states: Vec<S>,
+    /// Passes completed.
+    pub passes: u64,
+    pub elapsed: Duration,
+}
+
+/// A thread pool and the job's seed: runs passes of work items deterministically.
+pub struct Driver {
+    pool: ThreadPool,
+    threads: usize,
+    seed: u64,
+    width: usize,
+    height: usize,
+}
+
+impl Driver {
+    /// A driver for a `width`×`height` film with the job's thread count (0 means all available
+    /// cores) and seed.
+    pub fn new(job: &RenderJob, width: u32, height: u32) -> Result<Driver, RenderError> {
+        let threads =
+            if job.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { job.threads };
+        let pool = ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|i| format!("plexus-worker-{i}"))
+            .start_handler(|_| crate::accel::embree::set_flush_denormals())
+            .build()
+            .map_err(|e| RenderError::ThreadPool(e.to_string()))?;
+        Ok(Driver { pool, threads, seed: job.seed, width: width as usize, height: height as usize })
+    }
+
+    /// Number of worker slots (= threads).
+    pub fn threads(&self) -> usize {
+        self.threads
+    }
+
+    /// Runs `kernel` on every (pass, unit) item. The kernel gets the item, its unit's state and its
+    /// slot, and returns the progress units it completed (e.g. pixel samples), which are reported
+    /// to `progress` after each item.
+    pub fn run<U, S, K>(
+        &self,
+        units: Vec<U>,
+        passes: Passes,
+        progress: &dyn Progress,
+        init_slot: impl Fn(usize) -> S,
+        kernel: K,
+    ) -> RunOutput<U, S>
+    where
+        U: Send,
+        S: Send,
+        K: Fn(&WorkItem, &mut U, &mut Slot<S>) -> u64 + Sync,
+    {
+        let start = Instant::now();
+        let unit_count = units.len();
+        let threads = self.threads;
+        // Deal the units to slots: unit u to slot u mod threads, keeping increasing unit order.
+        let mut per_slot: Vec<(Slot<S>, Vec<(usize, U)>)> = (0..threads)
+            .map(|i| {
+                let slot = Slot {
+                    index: i,
+                    film: Accumulator::new(self.width, self.height),
+                    counters: Counters::default(),
+                    state: init_slot(i),
+                };
+                (slot, Vec::with_capacity(unit_count / threads + 1))
+            })
+            .collect();
+        for (u, unit) in units.into_iter().enumerate() {
+            per_slot[u % threads].1.push((u, unit));
+        }
+
+        let seed = self.seed;
+        let mut pass = 0u64;
+        loop {
+            let go = match passes {
+                Passes::Count(n) => pass < n,
+                Passes::Seconds(limit) => {
+                    let elapsed = start.elapsed().as_secs_f64();
+                    pass == 0 || elapsed + elapsed / pass as f64 <= limit
+                }
+            };
+            if !go || unit_count == 0 {
+                break;
+            }
+            let kernel = &kernel;
+            self.pool.scope(|scope| {
+                for (slot, slot_units) in per_slot.iter_mut() {
+                    scope.spawn(move |_| {
+                        for (u, unit) in slot_units.iter_mut() {
+                            let item = WorkItem { pass, unit: *u, stream: pass * unit_count as u64 + *u as u64, seed };
+                            let done = kernel(&item, unit, slot);
+                            progress.advance(done);
+                        }
+                    });
+                }
+            });
+            pass += 1;
+        }
+
+        let mut film = Accumulator::new(self.width, self.height);
+        let mut counters = Counters::default();
+        let mut slot_states = Vec::with_capacity(threads);
+        let mut indexed_units = Vec::with_capacity(unit_count);
+        for (slot, slot_units) in per_slot {
+            film.merge(&slot.film);
+            counters.merge(&slot.counters);
+            slot_states.push(slot.state);
+            indexed_units.extend(slot_units);
+        }
+        indexed_units.sort_by_key(|(u, _)| *u);
+        RunOutput {
+            film,
+            counters,
+            units: indexed_units.into_iter().map(|(_, unit)| unit).collect(),
+            slot_states,
+            passes: pass,
+            elapsed: start.elapsed(),
+        }
+    }
+}
+
+/// A rectangle of pixels `[x0, x1) × [y0, y1)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Tile {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+}
+
+impl Tile {
+    pub fn pixel_count(&self) -> u64 {
+        (self.x1 - self.x0) as u64 * (self.y1 - self.y0) as u64
+    }
+    /// The tile's pixels in row-major order.
+    pub fn pixels(&self) -> impl Iterator<Item = (u32, u32)> + '_ {
+        (self.y0..self.y1).flat_map(move |y| (self.x0..self.x1).map(move |x| (x, y)))
+    }
+}
+
+/// The schedule of an image-space integrator (one sample = one camera path per pixel): tiles, and
+/// how many samples per pixel each pass takes. Depends only on the resolution and budget, so it is
+/// part of what makes a render reproducible.
+#[derive(Clone, Debug)]
+pub struct ImagePlan {
+    pub tiles: Vec<Tile>,
+    /// Samples per pixel in each pass.
+    pub spp_per_pass: u64,
+    pub passes: Passes,
+    /// Total samples per pixel, when known in advance (sample budgets).
+    pub total_spp: Option<u64>,
+}
+
+impl ImagePlan {
+    /// Tiles the `width`×`height` film. For `Budget::SamplesPerPixel(n)` the passes take
+    /// `spp_per_pass` samples each (as many as make a pass hold about 2^16 pixel samples, but never
+    /// more than `n`), the last pass fewer if needed; the image is the per-pixel mean. For a time
+    /// budget every pass takes the same count, so the image stays the mean of equally many samples
+    /// at every pixel.
+    pub fn new(width: u32, height: u32, budget: Budget) -> ImagePlan {
+        let mut tiles = Vec::new();
+        for y0 in (0..height).step_by(TILE_SIZE as usize) {
+            for x0 in (0..width).step_by(TILE_SIZE as usize) {
+                tiles.push(Tile { x0, y0, x1: (x0 + TILE_SIZE).min(width), y1: (y0 + TILE_SIZE).min(height) });
+            }
+        }
+        let pixels = (width as u64 * height as u64).max(1);
+        let per_pass = MIN_SAMPLES_PER_PASS.div_ceil(pixels).max(1);
+        match budget {
+            Budget::SamplesPerPixel(n) => {
+                let spp_per_pass = per_pass.min(n.max(1));
+                ImagePlan { tiles, spp_per_pass, passes: Passes::Count(n.div_ceil(spp_per_pass)), total_spp: Some(n) }
+            }
+            Budget::Seconds(s) => {
+                ImagePlan { tiles, spp_per_pass: per_pass, passes: Passes::Seconds(s), total_spp: None }
+            }
+        }
+    }
+
+    /// Samples per pixel that pass `pass` takes (the last pass of a sample budget may take fewer).
+    pub fn spp_in_pass(&self, pass: u64) -> u64 {
+        match self.total_spp {
+            Some(total) => self.spp_per_pass.min(total.saturating_sub(pass * self.spp_per_pass)),
+            None => self.spp_per_pass,
+        }
+    }
+
+    /// Samples per pixel after `passes` complete passes.
+    pub fn spp_after(&self, passes: u64) -> u64 {
+        match self.total_spp {
+            Some(total) => (passes * self.spp_per_pass).min(total),
+            None => passes * self.spp_per_pass,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::NoProgress;
+    use crate::spectrum::Rgb;
+
+    fn job(threads: usize, seed: u64) -> RenderJob {
+        RenderJob { budget: Budget::SamplesPerPixel(1), seed, threads }
+    }
+
+    /// A kernel that splats random values to random pixels: the worst case for determinism.
+    fn splat_run(threads: usize, seed: u64) -> (Accumulator, Counters, u64) {
+        let driver = Driver::new(&job(threads, seed), 7, 5).expect("pool");
+        let out = driver.run(
+            vec![0u32; 13],
+            Passes::Count(3),
+            &NoProgress,
+            |_| (),
+            |item, visits, slot| {
+                let mut rng = item.rng();
+                for _ in 0..50 {
+                    let x = (rng.uniform() * 7.0) as usize;
+                    let y = (rng.uniform() * 5.0) as usize;
+                    slot.film.add(x, y, Rgb::splat(rng.uniform()));
+                }
+                *visits += 1;
+                slot.counters.samples += 50;
+                50
+            },
+        );
+        assert!(out.units.iter().all(|&v| v == 3), "every unit runs once per pass");
+        (out.film, out.counters, out.passes)
+    }
+
+    #[test]
+    fn splatting_run_is_bit_identical_for_same_seed_and_threads() {
+        let (a, ca, pa) = splat_run(3, 11);
+        let (b, _, _) = splat_run(3, 11);
+        let (c, _, _) = splat_run(3, 12);
+        assert_eq!(pa, 3);
+        assert_eq!(ca.samples, 13 * 3 * 50);
+        let (ia, ib, ic) = (a.to_image(1.0), b.to_image(1.0), c.to_image(1.0));
+        assert!(ia
+            .pixels
+            .iter()
+            .zip(&ib.pixels)
+            .all(|(p, q)| p.to_array().map(f32::to_bits) == q.to_array().map(f32::to_bits)));
+        assert_ne!(ia, ic);
+    }
+
+    #[test]
+    fn time_budget_runs_at_least_one_pass_and_stops() {
+        let driver = Driver::new(&job(2, 1), 4, 4).expect("pool");
+        let t = Instant::now();
+        let out = driver.run(
+            vec![(); 4],
+            Passes::Seconds(0.05),
+            &NoProgress,
+            |_| (),
+            |_, _, _| {
+                std::thread::sleep(Duration::from_millis(2));
+                1
+            },
+        );
+        assert!(out.passes >= 1);
+        assert!(t.elapsed().as_secs_f64() < 1.0);
+    }
+
+    #[test]
+    fn image_plan_covers_the_film_and_the_budget() {
+        let plan = ImagePlan::new(37, 20, Budget::SamplesPerPixel(1000));
+        let covered: u64 = plan.tiles.iter().map(Tile::pixel_count).sum();
+        assert_eq!(covered, 37 * 20);
+        let Passes::Count(n) = plan.passes else { panic!("sample budget gives a pass count") };
+        assert_eq!((0..n).map(|p| plan.spp_in_pass(p)).sum::<u64>(), 1000);
+        assert_eq!(plan.spp_after(n), 1000);
+        let small = ImagePlan::new(1920, 1080, Budget::SamplesPerPixel(4));
+        assert_eq!(small.spp_per_pass, 1);
+    }
+}
