@@ -1,0 +1,281 @@
+//! Camera and light subpath generation, driven by explicit uniforms read from a `PathSampler`.
+//!
+//! # Dimension layout (each subpath reads its own stream)
+//!
+//! | stream | dimensions |
+//! | --- | --- |
+//! | camera | `[0, 2)` film position; then per bounce `i` (from 0) the block `[2 + 4i, 6 + 4i)`: BSDF lobe, BSDF direction (2), Russian roulette |
+//! | light | `0` light selection, `[1, 6)` emission (position 3, direction 2); then per bounce `i` the block `[6 + 4i, 10 + 4i)` laid out as on the camera stream |
+//! | connection | per `s = 1` connection, 4 numbers: light selection, then `Light::sample_li`'s 3 |
+//!
+//! Every block is read whole whether or not it is used (a specular lobe ignores its direction
+//! numbers, Russian roulette before `rr_depth` ignores its number), so vertex `i` of a subpath is
+//! always produced by the same coordinates: primary-sample-space MLT can mutate them and
+//! reversible-jump MLT can write inverted numbers into them without shifting anything else.
+//! `t = 1` connections read nothing (the pinhole has no lens).
+
+use glam::{UVec2, Vec2};
+
+use crate::camera::CAMERA_SAMPLE_DIMS;
+use crate::integrator::pss::PssSampler;
+use crate::light::EMISSION_SAMPLE_DIMS;
+use crate::material::{TransportMode, BSDF_SAMPLE_DIMS};
+use crate::sampling::Rng;
+use crate::spectrum::{luminance, Rgb};
+use crate::stats::Counters;
+
+use super::vertex::Vertex;
+use super::BdptContext;
+
+/// Film dimensions at the start of the camera stream.
+pub const CAMERA_FILM_DIMS: usize = CAMERA_SAMPLE_DIMS;
+/// Dimensions every bounce reads: the BSDF's, then one for Russian roulette.
+pub const BOUNCE_DIMS: usize = BSDF_SAMPLE_DIMS + 1;
+/// Dimensions at the start of the light stream: light selection, then emission.
+pub const LIGHT_START_DIMS: usize = 1 + EMISSION_SAMPLE_DIMS;
+/// Dimensions one `s = 1` connection reads from the connection stream.
+pub const CONNECTION_DIMS: usize = 1 + crate::light::LI_SAMPLE_DIMS;
+
+/// A source of uniform numbers in [0, 1) for one stream. Independent sampling (`Rng`) and
+/// Kelemen's primary-sample-space chain (`PssSampler`, reading its current stream) both drive the
+/// same subpath code through it.
+pub trait PathSampler {
+    fn next_1d(&mut self) -> f32;
+    fn next_2d(&mut self) -> [f32; 2] {
+        [self.next_1d(), self.next_1d()]
+    }
+    /// The next `N` numbers, in order.
+    fn next_n<const N: usize>(&mut self) -> [f32; N]
+    where
+        Self: Sized,
+    {
+        let mut u = [0.0; N];
+        for x in &mut u {
+            *x = self.next_1d();
+        }
+        u
+    }
+}
+
+impl PathSampler for Rng {
+    #[inline]
+    fn next_1d(&mut self) -> f32 {
+        self.uniform()
+    }
+}
+
+impl PathSampler for PssSampler {
+    #[inline]
+    fn next_1d(&mut self) -> f32 {
+        PssSampler::next_1d(self)
+    }
+}
+
+/// A recorded or prescribed list of numbers (tests, replays, inverted samples); past its end it
+/// reads 0.5 so that a short list still yields a deterministic path.
+#[derive(Clone, Debug, Default)]
+pub struct ReplaySampler {
+    pub values: Vec<f32>,
+    pub position: usize,
+}
+
+impl PathSampler for ReplaySampler {
+    fn next_1d(&mut self) -> f32 {
+        let v = self.values.get(self.position).copied().unwrap_or(0.5);
+        self.position += 1;
+        v
+    }
+}
+
+/// Where the camera subpath's film sample lands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FilmRegion {
+    /// Inside one pixel (BDPT, light tracing estimates per pixel).
+    Pixel(UVec2),
+    /// Anywhere on the film, uniformly (primary-sample-space MLT).
+    WholeFilm,
+}
+
+/// Fills `path` with a camera subpath of at most `max_vertices` vertices (the pinhole included)
+/// and returns the continuous raster position of its primary ray. The camera vertex has
+/// throughput 1: for a pinhole, W_e·cos / (pdf_pos·pdf_dir) = 1 for film positions drawn uniformly
+/// (pbrt-v4 Sec. 16.1.1), per pixel or over the whole film alike.
+pub fn generate_camera_subpath<S: PathSampler>(
+    ctx: &BdptContext,
+    region: FilmRegion,
+    sampler: &mut S,
+    max_vertices: usize,
+    path: &mut Vec<Vertex>,
+    counters: &mut Counters,
+) -> Vec2 {
+    path.clear();
+    let camera = &ctx.scene.camera;
+    let u = sampler.next_2d();
+    let raster = match region {
+        FilmRegion::Pixel(px) => Vec2::new(px.x as f32 + u[0], px.y as f32 + u[1]),
+        FilmRegion::WholeFilm => Vec2::new(u[0] * camera.width as f32, u[1] * camera.height as f32),
+    };
+    if max_vertices == 0 {
+        return raster;
+    }
+    let ray = camera.ray_through(raster);
+    path.push(Vertex::camera(ray.o, Rgb::ONE));
+    if max_vertices == 1 {
+        return raster;
+    }
+    let (_, pdf_dir) = camera.pdf_we(ray.d);
+    random_walk(ctx, ray, sampler, Rgb::ONE, pdf_dir, max_vertices - 1, TransportMode::Radiance, path, counters);
+    raster
+}
+
+/// Fills `path` with a light subpath of at most `max_vertices` vertices (the emitter point
+/// included). Returns false (and an empty path) when the scene has no emitter or the emission
+/// sample failed.
+pub fn generate_light_subpath<S: PathSampler>(
+    ctx: &BdptContext,
+    sampler: &mut S,
+    max_vertices: usize,
+    path: &mut Vec<Vertex>,
+    counters: &mut Counters,
+) -> bool {
+    path.clear();
+    let scene = ctx.scene;
+    let u_light = sampler.next_1d();
+    let u_emit: [f32; EMISSION_SAMPLE_DIMS] = sampler.next_n();
+    let distribution = &scene.light_sampler.distribution;
+    if max_vertices == 0 || distribution.is_empty() || scene.lights.is_empty() {
+        return false;
+    }
+    let (li, pmf, _) = distribution.sample_discrete(u_light);
+    if !(pmf > 0.0) || li >= scene.lights.len() {
+        return false;
+    }
+    let light = &scene.lights[li];
+    let Some(es) = light.sample_emission(u_emit) else { return false };
+    if !(es.pdf_pos > 0.0) || !(es.pdf_dir > 0.0) || crate::spectrum::is_black(es.radiance) {
+        return false;
+    }
+    let li = li as u32;
+    // The vertex's pdf_fwd is set below from the path's geometry (pdf_light_origin) so that it is
+    // the same function of the path as in every MIS evaluation; the throughput uses the densities
+    // the sample was actually drawn with.
+    let v0 = if es.infinite {
+        Vertex::environment_light(li, es.dir, es.radiance / (pmf * es.pdf_pos), 0.0)
+    } else {
+        Vertex::area_light(li, es.p, es.n, es.radiance / (pmf * es.pdf_pos), 0.0)
+    };
+    path.push(v0);
+    let beta = es.radiance * es.n.dot(es.dir).abs() / (pmf * es.pdf_pos * es.pdf_dir);
+    if max_vertices == 1 {
+        return true;
+    }
+    let ray = if es.infinite {
+        crate::geometry::Ray::new(es.p, es.dir)
+    } else {
+        crate::geometry::spawn_ray(es.p, path[0].p_error, es.n, es.dir)
+    };
+    random_walk(ctx, ray, sampler, beta, es.pdf_dir, max_vertices - 1, TransportMode::Importance, path, counters);
+    if path.len() > 1 {
+        let (v0, rest) = path.split_first_mut().expect("path has two vertices");
+        let v1 = &mut rest[0];
+        // For an environment the direction density already chose the point's direction; the disk
+        // position density converts to area at v1 by the cosine alone (pbrt-v4 Sec. 13.4.2).
+        v1.pdf_fwd = v0.pdf_light(scene, v1);
+        v0.pdf_fwd = v0.pdf_light_origin(scene, v1);
+    }
+    true
+}
+
+/// Extends `path` by following `ray` from its last vertex, scattering at each hit with uniforms
+/// from `sampler` (one `BOUNCE_DIMS` block per surface vertex that is extended), until
+/// `max_new` vertices have been added, the ray escapes, a BSDF sample fails or Russian roulette
+/// stops it. `pdf_dir` is the solid-angle density with which `ray.d` was drawn.
+#[allow(clippy::too_many_arguments)]
+fn random_walk<S: PathSampler>(
+    ctx: &BdptContext,
+    mut ray: crate::geometry::Ray,
+    sampler: &mut S,
+    mut beta: Rgb,
+    mut pdf_dir: f32,
+    max_new: usize,
+    mode: TransportMode,
+    path: &mut Vec<Vertex>,
+    counters: &mut Counters,
+) {
+    let scene = ctx.scene;
+    let start_luminance = luminance(beta).max(f32::MIN_POSITIVE);
+    let mut added = 0;
+    while added < max_new {
+        counters.rays += 1;
+        let Some(si) = scene.intersect(&ray) else {
+            // Camera rays that escape meet the environment (if any) as a vertex at infinity; light
+            // rays that escape carry nothing further.
+            if mode == TransportMode::Radiance && scene.environment.is_some() {
+                let v = Vertex::escaped(scene.environment, ray.d, beta, pdf_dir);
+                path.push(v);
+            }
+            return;
+        };
+        let prev_index = path.len() - 1;
+        let mut v = Vertex::surface(scene, &si, -ray.d, beta, mode);
+        v.pdf_fwd = path[prev_index].convert_density(pdf_dir, &v);
+        path.push(v);
+        added += 1;
+        if added >= max_new {
+            return;
+        }
+        let u: [f32; BOUNCE_DIMS] = sampler.next_n();
+        let index = path.len() - 1;
+        let v = path[index];
+        let material = &scene.materials[v.material as usize];
+        let wo_l = v.frame.to_local(v.wo);
+        let Some(bs) = material.sample(wo_l, [u[0], u[1], u[2]], mode) else { return };
+        if !(bs.pdf > 0.0) || crate::spectrum::is_black(bs.f) {
+            return;
+        }
+        let wi = v.frame.to_world(bs.wi).normalize();
+        let cos = bs.wi.z.abs();
+        beta *= bs.f * (cos / bs.pdf) * super::vertex::shading_correction(mode, v.wo, wi, v.frame.n, v.ng);
+        let (pdf_fwd, pdf_rev) = if bs.delta {
+            // Delta lobes have no density to compare with: the MIS recurrence skips them (pbrt-v4
+            // Sec. 13.4.4, remap0).
+            (0.0, 0.0)
+        } else {
+            let rev_mode = match mode {
+                TransportMode::Radiance => TransportMode::Importance,
+                TransportMode::Importance => TransportMode::Radiance,
+            };
+            (bs.pdf, material.pdf(bs.wi, wo_l, rev_mode))
+        };
+        path[index].delta = bs.delta;
+        let rev = path[index].convert_density(pdf_rev, &path[index - 1]);
+        path[index - 1].pdf_rev = rev;
+        pdf_dir = pdf_fwd;
+        // Russian roulette on the throughput relative to the subpath's start, from `rr_depth`
+        // bounces on (the survival probability is not part of the MIS densities, as in pbrt).
+        if added >= ctx.rr_depth {
+            let survive = (luminance(beta) / start_luminance).min(1.0);
+            if !(u[3] < survive) {
+                return;
+            }
+            beta /= survive;
+        }
+        if !crate::spectrum::is_finite(beta) || crate::spectrum::is_black(beta) {
+            return;
+        }
+        ray = si.spawn(wi);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn replay_sampler_reads_in_order_then_half() {
+        let mut r = ReplaySampler { values: vec![0.1, 0.2], position: 0 };
+        assert_eq!(r.next_2d(), [0.1, 0.2]);
+        assert_eq!(r.next_1d(), 0.5);
+        assert_eq!(r.position, 3);
+    }
+}

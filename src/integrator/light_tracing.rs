@@ -1,0 +1,134 @@
+//! Pure light tracing (`integrator = "light"`): light subpaths from the emitters, every vertex
+//! connected to the pinhole and splatted where it lands — BDPT's t = 1 techniques alone, each
+//! weighted 1 (plus the emitter point itself, s = 1, which BDPT leaves to s = 0).
+//!
+//! It cannot see what only camera rays find: an environment seen directly or through specular
+//! surfaces only, and emitters seen through mirrors or glass (specular chains ending at the
+//! pinhole). It is the estimator of choice for caustics seen on diffuse surfaces.
+//!
+//! Each pass traces, per tile, as many light paths as the tile has pixels times the pass's samples
+//! per pixel; the film is divided by the samples per pixel (N_pixels · spp light paths estimate the
+//! film-normalised camera importance, pbrt-v4 Sec. 16.3).
+
+use serde::{Deserialize, Serialize};
+
+use super::bdpt::connect::connect_to_camera;
+use super::bdpt::{generate_light_subpath, BdptContext, MisHeuristic, Vertex};
+use super::driver::{Driver, ImagePlan};
+use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
+use crate::scene::Scene;
+use crate::spectrum::is_finite;
+
+/// Settings of `integrator = "light"`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LightTracerSettings {
+    /// Maximum number of scattering events of a path.
+    pub max_depth: u32,
+    /// Russian roulette on the light subpath after this many bounces.
+    pub rr_depth: u32,
+}
+
+impl Default for LightTracerSettings {
+    fn default() -> Self {
+        LightTracerSettings { max_depth: 16, rr_depth: 5 }
+    }
+}
+
+/// The light tracer.
+#[derive(Clone, Debug)]
+pub struct LightTracer {
+    pub settings: LightTracerSettings,
+}
+
+impl LightTracer {
+    pub fn new(settings: LightTracerSettings) -> LightTracer {
+        LightTracer { settings }
+    }
+
+    /// Builds from an `[integrator]` parameter table.
+    pub fn from_params(params: &toml::Table) -> Result<LightTracer, RenderError> {
+        let settings: LightTracerSettings = settings_from_table("light", params)?;
+        if settings.max_depth == 0 {
+            return Err(RenderError::Settings("light: max_depth must be at least 1".into()));
+        }
+        Ok(LightTracer::new(settings))
+    }
+}
+
+impl Integrator for LightTracer {
+    fn name(&self) -> &'static str {
+        "light"
+    }
+
+    fn settings_json(&self) -> serde_json::Value {
+        serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
+    }
+
+    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
+        let (width, height) = (scene.camera.width, scene.camera.height);
+        let plan = ImagePlan::new(width, height, job.budget);
+        if let Some(spp) = plan.total_spp {
+            progress.set_total(spp * width as u64 * height as u64);
+        }
+        let driver = Driver::new(job, width, height)?;
+        let ctx = BdptContext::new(scene, self.settings.rr_depth as usize, MisHeuristic::None);
+        let max_vertices = self.settings.max_depth as usize + 1;
+        let out = driver.run(
+            plan.tiles.clone(),
+            plan.passes,
+            progress,
+            |_| Vec::<Vertex>::new(),
+            |item, tile, slot| {
+                let paths = plan.spp_in_pass(item.pass) * tile.pixel_count();
+                let mut rng = item.rng();
+                for _ in 0..paths {
+                    if !generate_light_subpath(&ctx, &mut rng, max_vertices, &mut slot.state, &mut slot.counters) {
+                        continue;
+                    }
+                    for qs in slot.state.iter() {
+                        if !qs.connectible(scene) || qs.infinite {
+                            continue;
+                        }
+                        let Some((value, _, raster)) = connect_to_camera(&ctx, qs, &mut slot.counters) else {
+                            continue;
+                        };
+                        if !is_finite(value) {
+                            slot.counters.nonfinite_dropped += 1;
+                            continue;
+                        }
+                        slot.film.splat(raster, value);
+                    }
+                }
+                slot.counters.samples += paths;
+                paths
+            },
+        );
+        let spp = plan.spp_after(out.passes);
+        let image = out.film.to_image(if spp > 0 { 1.0 / spp as f64 } else { 0.0 });
+        Ok(RenderOutput {
+            image,
+            layers: Vec::new(),
+            counters: out.counters,
+            wall_time: out.elapsed,
+            extra_stats: serde_json::json!({
+                "light_paths_per_pixel": spp,
+                "passes": out.passes,
+                "threads": driver.threads(),
+            }),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn settings_defaults_and_unknown_keys() {
+        let l = LightTracer::from_params(&toml::Table::new()).expect("defaults");
+        assert_eq!(l.settings, LightTracerSettings::default());
+        let bad: toml::Table = toml::from_str("mis = \"balance\"").expect("toml");
+        assert!(LightTracer::from_params(&bad).is_err());
+    }
+}
