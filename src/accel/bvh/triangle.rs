@@ -1,0 +1,282 @@
+//! The two geometric tests the BVH is made of: the watertight ray–triangle test of Woop, Benthin
+//! and Wald 2013 ("Watertight Ray/Triangle Intersection", JCGT 2(1)) and a conservative slab test
+//! against axis-aligned boxes that cannot be fooled by `0 * inf = NaN`.
+
+use glam::Vec3;
+
+use crate::geometry::{gamma, Ray};
+
+/// Everything a traversal precomputes once per ray.
+#[derive(Clone, Copy, Debug)]
+pub struct RayPre {
+    pub o: Vec3,
+    /// Component-wise `1 / d`; a zero component gives a signed infinity (wanted: see [`slab`]).
+    pub inv_d: Vec3,
+    /// Whether each component of `d` is negative (sign bit, so `-0.0` counts as negative, which
+    /// matches the sign of the infinity in `inv_d`).
+    pub neg: [bool; 3],
+    /// Axis permutation of the watertight test: `kz` is the dominant axis of `d`, and `kx`, `ky`
+    /// are swapped when `d[kz] < 0` to keep the triangle winding (Sec. 3, Fig. 2 of the paper).
+    k: [usize; 3],
+    /// Shear constants (Sx, Sy, Sz) = (dx/dz, dy/dz, 1/dz) in the permuted frame.
+    s: [f32; 3],
+}
+
+/// `1 + 2γ(3)`: pbrt-v4's factor (Sec. 6.8.2) that makes the far slab distance an upper bound of
+/// the exact value despite the rounding of `(b - o)` and of the product with `1/d`.
+#[inline]
+fn far_scale() -> f32 {
+    1.0 + 2.0 * gamma(3)
+}
+
+impl RayPre {
+    /// Precomputes the ray's constants; `None` when the direction is zero or not finite, or the
+    /// origin not finite (such a ray hits nothing).
+    #[inline]
+    pub fn new(ray: &Ray) -> Option<RayPre> {
+        let d = ray.d;
+        if !d.is_finite() || !ray.o.is_finite() || d == Vec3::ZERO {
+            return None;
+        }
+        let a = d.abs();
+        let kz = if a.x > a.y {
+            if a.x > a.z {
+                0
+            } else {
+                2
+            }
+        } else if a.y > a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = if kz == 2 { 0 } else { kz + 1 };
+        let mut ky = if kx == 2 { 0 } else { kx + 1 };
+        let da = d.to_array();
+        if da[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let dz = da[kz];
+        let s = [da[kx] / dz, da[ky] / dz, 1.0 / dz];
+        Some(RayPre {
+            o: ray.o,
+            inv_d: Vec3::ONE / d,
+            neg: [d.x.is_sign_negative(), d.y.is_sign_negative(), d.z.is_sign_negative()],
+            k: [kx, ky, kz],
+            s,
+        })
+    }
+
+    /// The vertex `p` relative to the ray origin, permuted so that the ray runs along +z and
+    /// sheared so that it becomes the z axis (Eq. 2–3 of the paper), except that the z coordinate
+    /// is only permuted; it is scaled by Sz later, only for triangles that pass the edge tests.
+    #[inline(always)]
+    fn transform(&self, p: Vec3) -> (f32, f32, f32) {
+        let a = (p - self.o).to_array();
+        let [kx, ky, kz] = self.k;
+        let z = a[kz];
+        (a[kx] - self.s[0] * z, a[ky] - self.s[1] * z, z)
+    }
+}
+
+/// `a·d − b·c` of the edge function, in single precision with a double-precision fallback when the
+/// result is exactly zero: products of two f32 are exact in f64, so the fallback's sign is that of
+/// the exact value (Sec. 4 of the paper). A nonzero f64 result too small for f32 keeps its sign as
+/// the smallest normal f32.
+#[inline(always)]
+fn edge_exact(a: f32, d: f32, b: f32, c: f32) -> f32 {
+    let e = (a as f64) * (d as f64) - (b as f64) * (c as f64);
+    if e == 0.0 {
+        0.0
+    } else {
+        let f = e as f32;
+        if f != 0.0 {
+            f
+        } else if e > 0.0 {
+            f32::MIN_POSITIVE
+        } else {
+            -f32::MIN_POSITIVE
+        }
+    }
+}
+
+/// Watertight intersection of the ray behind `pre` with the triangle `(v0, v1, v2)`, both sides,
+/// accepting `t` in `[t_min, t_max]`. Returns `(t, b1, b2)` in Embree's convention: the hit point is
+/// `(1 − b1 − b2) v0 + b1 v1 + b2 v2`. Zero-area triangles (in the ray's projection) are never hit.
+///
+/// Watertight because a shared edge's function is computed from the same transformed vertices in
+/// both triangles, with swapped roles that flip the sign exactly, and exact zeros are resolved in
+/// double precision; points on an edge or vertex (all three functions ≥ 0 or all ≤ 0) count as hits.
+#[inline(always)]
+pub fn intersect_triangle(
+    pre: &RayPre,
+    v0: Vec3,
+    v1: Vec3,
+    v2: Vec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<(f32, f32, f32)> {
+    let (ax, ay, az) = pre.transform(v0);
+    let (bx, by, bz) = pre.transform(v1);
+    let (cx, cy, cz) = pre.transform(v2);
+
+    // Scaled barycentric coordinates (Eq. 4): U weights v0, V weights v1, W weights v2.
+    let mut u = cx * by - cy * bx;
+    let mut v = ax * cy - ay * cx;
+    let mut w = bx * ay - by * ax;
+    if u == 0.0 || v == 0.0 || w == 0.0 {
+        u = edge_exact(cx, by, cy, bx);
+        v = edge_exact(ax, cy, ay, cx);
+        w = edge_exact(bx, ay, by, ax);
+    }
+    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        return None;
+    }
+    let det = u + v + w;
+    if det == 0.0 {
+        return None;
+    }
+    // Scaled hit distance (Eq. 5), then one division.
+    let sz = pre.s[2];
+    let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
+    let inv_det = 1.0 / det;
+    let t = t_scaled * inv_det;
+    // Written so that a NaN t (possible only through overflow) is rejected.
+    if !(t >= t_min && t <= t_max) {
+        return None;
+    }
+    Some((t, v * inv_det, w * inv_det))
+}
+
+/// `max(x, acc)` that keeps `acc` when `x` is NaN (`acc` is never NaN). One `maxss` on x86.
+#[inline(always)]
+fn max_keep(x: f32, acc: f32) -> f32 {
+    if x > acc {
+        x
+    } else {
+        acc
+    }
+}
+
+/// `min(x, acc)` that keeps `acc` when `x` is NaN.
+#[inline(always)]
+fn min_keep(x: f32, acc: f32) -> f32 {
+    if x < acc {
+        x
+    } else {
+        acc
+    }
+}
+
+/// Slab test of the box `[min, max]` against the ray segment `[t_min, t_max]`; returns whether they
+/// overlap. Conservative: the far distance of each slab is scaled by `1 + 2γ(3)` (pbrt-v4 Sec.
+/// 6.8.2) so rounding never rejects a box the exact ray touches. A zero direction component makes
+/// `1/d` infinite; if the origin lies exactly on that slab's plane, `(b − o)·(1/d)` is `0 · inf =
+/// NaN`, meaning "the ray runs inside the plane": such a slab is ignored (it does not restrict t),
+/// which is exact for the far plane and conservative for the near one.
+#[inline(always)]
+pub fn slab(pre: &RayPre, min: Vec3, max: Vec3, t_min: f32, t_max: f32) -> bool {
+    let t0 = (min - pre.o) * pre.inv_d;
+    let t1 = (max - pre.o) * pre.inv_d;
+    let (nx, fx) = if pre.neg[0] { (t1.x, t0.x) } else { (t0.x, t1.x) };
+    let (ny, fy) = if pre.neg[1] { (t1.y, t0.y) } else { (t0.y, t1.y) };
+    let (nz, fz) = if pre.neg[2] { (t1.z, t0.z) } else { (t0.z, t1.z) };
+    let near = max_keep(nz, max_keep(ny, max_keep(nx, t_min)));
+    let scale = far_scale();
+    let far = min_keep(fz * scale, min_keep(fy * scale, min_keep(fx * scale, t_max)));
+    near <= far
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hit(ray: &Ray, v: [Vec3; 3]) -> Option<(f32, f32, f32)> {
+        intersect_triangle(&RayPre::new(ray)?, v[0], v[1], v[2], ray.t_min, ray.t_max)
+    }
+
+    #[test]
+    fn barycentrics_follow_embree_convention_on_both_sides() {
+        let tri = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)];
+        for (oz, dz) in [(2.0, -1.0), (-2.0, 1.0)] {
+            let ray = Ray::new(Vec3::new(0.25, -0.5, oz), Vec3::new(0.0, 0.0, dz));
+            let (t, b1, b2) = hit(&ray, tri).expect("the ray points at the triangle");
+            assert!((t - 2.0).abs() < 1e-6);
+            assert!((b1 - 0.375).abs() < 1e-6 && (b2 - 0.25).abs() < 1e-6, "{b1} {b2}");
+            let p = (1.0 - b1 - b2) * tri[0] + b1 * tri[1] + b2 * tri[2];
+            assert!((p - ray.at(t)).length() < 1e-6);
+        }
+        // An oblique ray along every dominant axis and sign.
+        for axis in 0..3 {
+            for sign in [-1.0f32, 1.0] {
+                let rot = |p: Vec3| match axis {
+                    0 => Vec3::new(p.z, p.x, p.y),
+                    1 => Vec3::new(p.y, p.z, p.x),
+                    _ => p,
+                };
+                let tri_r = tri.map(rot);
+                let target = rot(Vec3::new(0.5, 0.0, 0.0));
+                let o = rot(Vec3::new(0.2, 0.3, -3.0 * sign));
+                let ray = Ray::new(o, (target - o).normalize());
+                let (t, b1, b2) = hit(&ray, tri_r).expect("hit");
+                let p = (1.0 - b1 - b2) * tri_r[0] + b1 * tri_r[1] + b2 * tri_r[2];
+                assert!((p - target).length() < 1e-5 && (ray.at(t) - target).length() < 1e-5);
+            }
+        }
+    }
+
+    #[test]
+    fn interval_and_degenerate_cases() {
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let o = Vec3::new(0.2, 0.2, 1.0);
+        assert!(hit(&Ray::segment(o, -Vec3::Z, 0.999), tri).is_none());
+        assert!(hit(&Ray::segment(o, -Vec3::Z, 1.0), tri).is_some(), "t_max is inclusive");
+        assert!(hit(&Ray { o, d: -Vec3::Z, t_min: 1.0, t_max: f32::INFINITY }, tri).is_some());
+        assert!(hit(&Ray { o, d: -Vec3::Z, t_min: 1.001, t_max: f32::INFINITY }, tri).is_none());
+        assert!(hit(&Ray::new(o, Vec3::Z), tri).is_none(), "behind the origin");
+        // Zero-area triangles: collinear and coincident vertices.
+        assert!(hit(&Ray::new(o, -Vec3::Z), [Vec3::ZERO, Vec3::X, Vec3::X * 2.0]).is_none());
+        assert!(hit(&Ray::new(Vec3::new(0.0, 0.0, 1.0), -Vec3::Z), [Vec3::ZERO; 3]).is_none());
+        // A ray in the triangle's plane.
+        assert!(hit(&Ray::new(Vec3::new(-1.0, 0.2, 0.0), Vec3::X), tri).is_none());
+        // Invalid rays.
+        assert!(RayPre::new(&Ray::new(o, Vec3::ZERO)).is_none());
+        assert!(RayPre::new(&Ray::new(o, Vec3::new(f32::NAN, 0.0, 1.0))).is_none());
+    }
+
+    #[test]
+    fn edges_and_vertices_count_as_hits() {
+        let tri = [Vec3::ZERO, Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 4.0, 0.0)];
+        for p in [Vec3::ZERO, Vec3::new(4.0, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 2.0, 0.0)] {
+            let ray = Ray::new(p + Vec3::Z, -Vec3::Z);
+            assert!(hit(&ray, tri).is_some(), "{p}");
+        }
+    }
+
+    #[test]
+    fn slab_handles_rays_inside_a_face_plane() {
+        let (min, max) = (Vec3::ZERO, Vec3::ONE);
+        let test = |o: Vec3, d: Vec3| slab(&RayPre::new(&Ray::new(o, d)).unwrap(), min, max, 0.0, f32::INFINITY);
+        // Origin exactly on the x = 0 face plane, moving inside that plane: 0 * inf = NaN.
+        assert!(test(Vec3::new(0.0, -1.0, 0.5), Vec3::Y));
+        assert!(test(Vec3::new(1.0, -1.0, 0.5), Vec3::Y));
+        assert!(test(Vec3::new(1.0, 2.0, 1.0), -Vec3::Y));
+        // A negative zero direction component must behave the same.
+        assert!(test(Vec3::new(0.0, -1.0, 0.5), Vec3::new(-0.0, 1.0, 0.0)));
+        // Parallel to a slab but outside it.
+        assert!(!test(Vec3::new(-0.1, -1.0, 0.5), Vec3::Y));
+        assert!(!test(Vec3::new(1.1, -1.0, 0.5), Vec3::new(-0.0, 1.0, 0.0)));
+        // A flat box (zero extent in z) seen edge-on and face-on.
+        let flat = |o: Vec3, d: Vec3| {
+            slab(&RayPre::new(&Ray::new(o, d)).unwrap(), Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), 0.0, f32::INFINITY)
+        };
+        assert!(flat(Vec3::new(-1.0, 0.5, 0.0), Vec3::X));
+        assert!(flat(Vec3::new(0.5, 0.5, 1.0), -Vec3::Z));
+        assert!(!flat(Vec3::new(0.5, 0.5, 1.0), Vec3::Z));
+        // Segment bounds.
+        let pre = RayPre::new(&Ray::new(Vec3::new(0.5, 0.5, 3.0), -Vec3::Z)).unwrap();
+        assert!(!slab(&pre, min, max, 0.0, 1.9));
+        assert!(slab(&pre, min, max, 0.0, 2.0));
+        assert!(!slab(&pre, min, max, 3.5, f32::INFINITY));
+    }
+}
