@@ -1,6 +1,21 @@
 //! Scenes: the TOML schema (serde), validation with precise messages, mesh loading, and the built
 //! `Scene` that integrators render.
 
+mod builtin;
+pub mod desc;
+mod error;
+mod info;
+mod load;
+pub mod mesh_io;
+mod pending;
+pub mod shapes;
+pub mod transform;
+
+pub use builtin::{builtin_cornell_box, CORNELL_BOX_TOML};
+pub use error::SceneError;
+pub use info::{material_kind, scene_info, ImageEnvironmentFeature, MemoryEstimate, SceneFeatures, SceneInfo};
+pub use load::{load_scene, load_scene_str, LoadedScene, RenderDesc, DEFAULT_IOR, DEFAULT_ROUGHNESS};
+
 use std::path::PathBuf;
 use std::sync::Arc;
 

@@ -1,0 +1,573 @@
+//! From a TOML scene file to a built `Scene`: parse (serde), validate every value with its key
+//! path, load and transform meshes, and build only the lights, distributions and accelerator the
+//! scene asks for.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::{Mat3, Mat4, Vec3};
+
+use super::desc::{
+    CameraDesc, ColorDesc, EnvironmentDesc, MaterialDesc, PortalDesc, RenderSettingsDesc, SceneDesc, ShapeDesc,
+};
+use super::error::SceneError;
+use super::mesh_io::{self, RawMesh};
+use super::{pending, shapes, transform, Portal, Scene, ShapeInfo};
+use crate::accel::{self, AccelKind};
+use crate::camera::Camera;
+use crate::geometry::{Aabb, TriangleMesh};
+use crate::light::Light;
+use crate::material::Material;
+use crate::spectrum::Rgb;
+
+/// A built scene together with the render settings its file asked for.
+pub struct LoadedScene {
+    pub scene: Scene,
+    pub render: RenderDesc,
+}
+
+/// The `[integrator]` and `[render]` tables, validated (integrator parameters are checked later
+/// by the integrator's own settings struct).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderDesc {
+    /// Integrator name; "pt" when the file names none.
+    pub integrator: String,
+    /// The `[integrator]` table without `type`.
+    pub integrator_params: toml::Table,
+    pub spp: Option<u64>,
+    /// Time budget in seconds.
+    pub time: Option<f64>,
+    pub seed: u64,
+    pub threads: Option<usize>,
+    /// Output images, relative to the current directory.
+    pub outputs: Vec<PathBuf>,
+    pub accel: AccelKind,
+}
+
+/// Loads and builds the scene in `path`; mesh and image files are relative to its directory.
+/// `accel` overrides the file's `[render] accel`.
+pub fn load_scene(path: &Path, accel: Option<AccelKind>) -> Result<LoadedScene, SceneError> {
+    let name = path.display().to_string();
+    let text =
+        std::fs::read_to_string(path).map_err(|e| SceneError::Read { file: name.clone(), reason: e.to_string() })?;
+    let base = path.parent().unwrap_or(Path::new(""));
+    let mut loaded = load_scene_str(&text, base, &name, accel)?;
+    loaded.scene.source = Some(path.to_path_buf());
+    Ok(loaded)
+}
+
+/// Loads a scene from TOML text; `base_dir` resolves relative mesh and image paths and `name`
+/// stands for the file in messages.
+pub fn load_scene_str(
+    toml_text: &str,
+    base_dir: &Path,
+    name: &str,
+    accel: Option<AccelKind>,
+) -> Result<LoadedScene, SceneError> {
+    let desc: SceneDesc = toml::from_str(toml_text).map_err(|e| SceneError::from_toml(name, toml_text, &e))?;
+    Builder { file: name, base_dir }.build(desc, accel)
+}
+
+struct Builder<'a> {
+    file: &'a str,
+    base_dir: &'a Path,
+}
+
+/// One mesh on its way into the scene.
+struct BuiltShape {
+    mesh: Arc<TriangleMesh>,
+    info: ShapeInfo,
+    emission: Option<(Rgb, bool)>,
+}
+
+impl Builder<'_> {
+    fn err(&self, key: impl Into<String>, message: impl Into<String>) -> SceneError {
+        SceneError::Invalid { file: self.file.to_string(), key: key.into(), message: message.into() }
+    }
+
+    fn build(&self, desc: SceneDesc, accel_override: Option<AccelKind>) -> Result<LoadedScene, SceneError> {
+        let camera = self.camera(&desc.camera)?;
+        let (materials, material_index) = self.materials(&desc.materials)?;
+        if desc.shapes.is_empty() {
+            return Err(self.err("shapes", "expected at least one [[shapes]] entry, found none"));
+        }
+        let mut built = Vec::with_capacity(desc.shapes.len());
+        for (i, s) in desc.shapes.iter().enumerate() {
+            built.push(self.shape(i, s, &material_index)?);
+        }
+        let render = self.render(desc.integrator, desc.render.unwrap_or_default(), accel_override)?;
+
+        let mut bounds = Aabb::EMPTY;
+        for s in &built {
+            bounds = bounds.union(&s.mesh.bounds());
+        }
+
+        let mut meshes = Vec::with_capacity(built.len());
+        let mut infos = Vec::with_capacity(built.len());
+        let mut lights = Vec::new();
+        for (geom_id, s) in built.into_iter().enumerate() {
+            let mut info = s.info;
+            if let Some((radiance, two_sided)) = s.emission {
+                info.light = Some(lights.len() as u32);
+                lights.push(Light::Area(pending::area_light(s.mesh.clone(), geom_id as u32, radiance, two_sided)));
+            }
+            meshes.push(s.mesh);
+            infos.push(info);
+        }
+        let environment = match &desc.environment {
+            Some(env) => {
+                lights.push(self.environment(env, &bounds)?);
+                Some(lights.len() as u32 - 1)
+            }
+            None => None,
+        };
+        if lights.is_empty() {
+            return Err(self.err(
+                "shapes",
+                "expected at least one emitter (a shape with 'emission' or an [environment]), found none",
+            ));
+        }
+        let portals = desc.portals.iter().enumerate().map(|(i, p)| self.portal(i, p)).collect::<Result<Vec<_>, _>>()?;
+
+        let light_sampler = pending::light_sampler(&lights);
+        let accel = accel::build(render.accel, &meshes).map_err(|e| SceneError::Accel {
+            file: self.file.to_string(),
+            accel: render.accel.to_string(),
+            message: e.to_string(),
+        })?;
+        let scene = Scene {
+            camera,
+            meshes,
+            shapes: infos,
+            materials,
+            lights,
+            light_sampler,
+            environment,
+            portals,
+            accel,
+            bounds,
+            source: None,
+        };
+        Ok(LoadedScene { scene, render })
+    }
+
+    fn camera(&self, c: &CameraDesc) -> Result<Camera, SceneError> {
+        let position = self.finite_vec("camera.position", c.position)?;
+        let look_at = self.finite_vec("camera.look_at", c.look_at)?;
+        let up = self.finite_vec("camera.up", c.up)?;
+        let forward = look_at - position;
+        if forward.length_squared() == 0.0 {
+            return Err(self.err(
+                "camera.look_at",
+                format!("expected a point other than camera.position, got {}", fmt3(c.look_at)),
+            ));
+        }
+        if forward.normalize().cross(up).length_squared() < 1e-12 {
+            return Err(self.err(
+                "camera.up",
+                format!("expected a direction not parallel to the view direction, got {}", fmt3(c.up)),
+            ));
+        }
+        if !(c.fov > 0.0 && c.fov < 180.0) {
+            return Err(self.err(
+                "camera.fov",
+                format!("expected a vertical field of view in degrees in (0, 180), got {}", c.fov),
+            ));
+        }
+        let [w, h] = c.resolution;
+        const MAX: i64 = 1 << 16;
+        if !(1..=MAX).contains(&w) || !(1..=MAX).contains(&h) {
+            return Err(self.err(
+                "camera.resolution",
+                format!("expected two positive integers [width, height] (at most {MAX}), got [{w}, {h}]"),
+            ));
+        }
+        Ok(Camera::new(position, look_at, up, c.fov, w as u32, h as u32))
+    }
+
+    fn materials(
+        &self,
+        descs: &BTreeMap<String, MaterialDesc>,
+    ) -> Result<(Vec<Material>, BTreeMap<String, u32>), SceneError> {
+        let mut materials = Vec::with_capacity(descs.len());
+        let mut index = BTreeMap::new();
+        for (name, d) in descs {
+            index.insert(name.clone(), materials.len() as u32);
+            materials.push(self.material(name, d)?);
+        }
+        Ok((materials, index))
+    }
+
+    fn material(&self, name: &str, d: &MaterialDesc) -> Result<Material, SceneError> {
+        let key = |k: &str| format!("materials.{name}.{k}");
+        let allowed: &[&str] = match d.kind.as_str() {
+            "diffuse" | "mirror" => &["reflectance"],
+            "dielectric" => &["ior"],
+            "conductor" => &["roughness", "eta", "k", "colour"],
+            "plastic" => &["diffuse", "roughness", "ior"],
+            other => {
+                return Err(self.err(
+                    key("type"),
+                    format!("expected one of: diffuse, mirror, dielectric, conductor, plastic, got '{other}'"),
+                ))
+            }
+        };
+        for k in d.present_keys() {
+            if !allowed.contains(&k) {
+                return Err(self.err(
+                    format!("materials.{name}"),
+                    format!("key '{k}' does not apply to type '{}' (expected: type, {})", d.kind, allowed.join(", ")),
+                ));
+            }
+        }
+        Ok(match d.kind.as_str() {
+            "diffuse" => Material::Diffuse { reflectance: self.reflectance(&key("reflectance"), d.reflectance, 0.5)? },
+            "mirror" => Material::Mirror { reflectance: self.reflectance(&key("reflectance"), d.reflectance, 1.0)? },
+            "dielectric" => Material::Dielectric { ior: self.ior(&key("ior"), d.ior)? },
+            "conductor" => {
+                let alpha = self.roughness(&key("roughness"), d.roughness)?;
+                match (d.colour, d.eta, d.k) {
+                    (Some(c), None, None) => {
+                        let colour = self.reflectance(&key("colour"), Some(c), 0.0)?;
+                        Material::conductor_from_colour(alpha, colour)
+                    }
+                    (None, Some(eta), Some(k)) => {
+                        let eta = self.color(&key("eta"), eta, "every component > 0", |v| v > 0.0)?;
+                        let k = self.color(&key("k"), k, "every component ≥ 0", |v| v >= 0.0)?;
+                        Material::RoughConductor { alpha, eta, k }
+                    }
+                    _ => {
+                        return Err(self.err(
+                            format!("materials.{name}"),
+                            "a conductor needs either 'colour' or both 'eta' and 'k' (and not both forms)",
+                        ))
+                    }
+                }
+            }
+            "plastic" => Material::RoughPlastic {
+                diffuse: self.reflectance(&key("diffuse"), d.diffuse, 0.5)?,
+                alpha: self.roughness(&key("roughness"), d.roughness)?,
+                ior: self.ior(&key("ior"), d.ior)?,
+            },
+            _ => unreachable!("material type checked above"),
+        })
+    }
+
+    fn shape(&self, i: usize, s: &ShapeDesc, materials: &BTreeMap<String, u32>) -> Result<BuiltShape, SceneError> {
+        let key = |k: &str| format!("shapes[{i}].{k}");
+        let &material = materials.get(&s.material).ok_or_else(|| {
+            let known: Vec<&str> = materials.keys().map(String::as_str).collect();
+            self.err(
+                key("material"),
+                format!(
+                    "unknown material '{}' (defined: {})",
+                    s.material,
+                    if known.is_empty() { "none".to_string() } else { known.join(", ") }
+                ),
+            )
+        })?;
+        let takes_file = matches!(s.kind.as_str(), "obj" | "ply");
+        if takes_file != s.file.is_some() {
+            return Err(if takes_file {
+                self.err(key("file"), format!("a '{}' shape needs 'file' (a path relative to the scene file)", s.kind))
+            } else {
+                self.err(key("file"), format!("only 'obj' and 'ply' shapes take a file, not '{}'", s.kind))
+            });
+        }
+        if s.subdivisions.is_some() && !matches!(s.kind.as_str(), "disk" | "sphere") {
+            return Err(self.err(
+                key("subdivisions"),
+                format!("only 'disk' and 'sphere' shapes take subdivisions, not '{}'", s.kind),
+            ));
+        }
+        let (mut raw, name) = match s.kind.as_str() {
+            "obj" | "ply" => {
+                let file = s.file.as_deref().unwrap_or_default();
+                let path = self.base_dir.join(file);
+                let read = if s.kind == "obj" { mesh_io::load_obj(&path) } else { mesh_io::load_ply(&path) };
+                let raw = read.map_err(|e| self.err(key("file"), format!("mesh '{}': {e}", path.display())))?;
+                (raw, file.to_string())
+            }
+            "quad" => (shapes::quad(), "quad".to_string()),
+            "box" => (shapes::cube(), "box".to_string()),
+            "disk" => (
+                shapes::disk(self.subdivisions(
+                    &key("subdivisions"),
+                    s.subdivisions,
+                    shapes::DISK_DEFAULT_SEGMENTS,
+                    3,
+                    1 << 20,
+                )?),
+                "disk".to_string(),
+            ),
+            "sphere" => (
+                shapes::sphere(self.subdivisions(
+                    &key("subdivisions"),
+                    s.subdivisions,
+                    shapes::SPHERE_DEFAULT_RINGS,
+                    2,
+                    2048,
+                )?),
+                "sphere".to_string(),
+            ),
+            other => {
+                return Err(
+                    self.err(key("type"), format!("expected one of: obj, ply, quad, box, disk, sphere, got '{other}'"))
+                )
+            }
+        };
+        if let Some(t) = &s.transform {
+            let m: Mat4 = transform::matrix_from_desc(t).map_err(|e| self.split_err(&key("transform"), &e))?;
+            transform::apply(&mut raw, &m);
+        }
+        if s.face_normals == Some(true) {
+            raw.normals = None;
+        }
+        if s.flip_normals == Some(true) {
+            transform::flip_orientation(&mut raw);
+        }
+        let RawMesh { positions, indices, normals, uvs } = raw;
+        let mesh = TriangleMesh::new(positions, indices, normals, uvs).map_err(|e| match &s.file {
+            Some(f) => self.err(key("file"), format!("mesh '{}': {e}", self.base_dir.join(f).display())),
+            None => self.err(format!("shapes[{i}]"), format!("the {} shape: {e}", s.kind)),
+        })?;
+        let emission = match &s.emission {
+            Some(e) => {
+                let radiance =
+                    self.color(&key("emission.radiance"), e.radiance, "every component ≥ 0", |v| v >= 0.0)?;
+                if !(e.scale >= 0.0 && e.scale.is_finite()) {
+                    return Err(
+                        self.err(key("emission.scale"), format!("expected a finite number ≥ 0, got {}", e.scale))
+                    );
+                }
+                Some((radiance * e.scale, e.two_sided))
+            }
+            None => None,
+        };
+        Ok(BuiltShape { mesh: Arc::new(mesh), info: ShapeInfo { name, material, light: None }, emission })
+    }
+
+    /// Splits a transform error "sub.key: message" into the key path and the message.
+    fn split_err(&self, prefix: &str, e: &str) -> SceneError {
+        match e.split_once(": ") {
+            Some((sub, msg)) if !sub.contains(' ') => self.err(format!("{prefix}.{sub}"), msg),
+            _ => self.err(prefix, e),
+        }
+    }
+
+    fn subdivisions(&self, key: &str, v: Option<i64>, default: u32, min: i64, max: i64) -> Result<u32, SceneError> {
+        match v {
+            None => Ok(default),
+            Some(n) if (min..=max).contains(&n) => Ok(n as u32),
+            Some(n) => Err(self.err(key, format!("expected an integer in [{min}, {max}], got {n}"))),
+        }
+    }
+
+    fn environment(&self, env: &EnvironmentDesc, bounds: &Aabb) -> Result<Light, SceneError> {
+        let allowed: &[&str] = match env.kind.as_str() {
+            "constant" => &["radiance", "scale"],
+            "image" => &["file", "scale", "rotate"],
+            other => {
+                return Err(self.err("environment.type", format!("expected one of: constant, image, got '{other}'")))
+            }
+        };
+        let present = [
+            ("radiance", env.radiance.is_some()),
+            ("file", env.file.is_some()),
+            ("scale", env.scale.is_some()),
+            ("rotate", env.rotate.is_some()),
+        ];
+        for (k, p) in present {
+            if p && !allowed.contains(&k) {
+                return Err(self.err(
+                    "environment",
+                    format!("key '{k}' does not apply to type '{}' (expected: type, {})", env.kind, allowed.join(", ")),
+                ));
+            }
+        }
+        let scale = env.scale.unwrap_or(1.0);
+        if !(scale >= 0.0 && scale.is_finite()) {
+            return Err(self.err("environment.scale", format!("expected a finite number ≥ 0, got {scale}")));
+        }
+        if env.kind == "constant" {
+            let c = env.radiance.ok_or_else(|| self.err("environment", "a 'constant' environment needs 'radiance'"))?;
+            let radiance = self.color("environment.radiance", c, "every component ≥ 0", |v| v >= 0.0)?;
+            return Ok(Light::ConstantEnvironment(pending::constant_environment(radiance * scale, *bounds)));
+        }
+        let file = env
+            .file
+            .as_deref()
+            .ok_or_else(|| self.err("environment", "an 'image' environment needs 'file' (an EXR)"))?;
+        let path = self.base_dir.join(file);
+        let image = pending::read_exr(&path)
+            .map_err(|e| self.err("environment.file", format!("image '{}': {e}", path.display())))?;
+        if image.width == 0 || image.height == 0 {
+            return Err(self.err("environment.file", format!("image '{}': expected a non-empty image", path.display())));
+        }
+        if let Some(i) = image.pixels.iter().position(|p| !(p.is_finite() && p.min_element() >= 0.0)) {
+            let p = image.pixels[i];
+            return Err(self.err(
+                "environment.file",
+                format!(
+                    "image '{}': expected finite texels ≥ 0, got {} at pixel ({}, {})",
+                    path.display(),
+                    fmt3(p.to_array()),
+                    i % image.width,
+                    i / image.width
+                ),
+            ));
+        }
+        let rotation = match &env.rotate {
+            Some(r) => transform::rotation_matrix(r).map_err(|e| self.split_err("environment", &e))?,
+            None => Mat3::IDENTITY,
+        };
+        // `rotate` turns the map in the world; lookups need the inverse, world to map.
+        let to_local = rotation.transpose();
+        Ok(Light::ImageEnvironment(pending::image_environment(
+            image.width,
+            image.height,
+            image.pixels,
+            scale,
+            to_local,
+            *bounds,
+        )))
+    }
+
+    fn portal(&self, i: usize, p: &PortalDesc) -> Result<Portal, SceneError> {
+        let key = format!("portals[{i}]");
+        let (corner, edge_u, edge_v) = match (p.corner, p.edge_u, p.edge_v, &p.transform) {
+            (Some(c), Some(u), Some(v), None) => (
+                self.finite_vec(&format!("{key}.corner"), c)?,
+                self.finite_vec(&format!("{key}.edge_u"), u)?,
+                self.finite_vec(&format!("{key}.edge_v"), v)?,
+            ),
+            (None, None, None, Some(t)) => {
+                let m = transform::matrix_from_desc(t).map_err(|e| self.split_err(&format!("{key}.transform"), &e))?;
+                // The unit quad [-1, 1]² of a `quad` shape, placed by the transform.
+                let c = m.transform_point3(Vec3::new(-1.0, -1.0, 0.0));
+                (
+                    c,
+                    m.transform_point3(Vec3::new(1.0, -1.0, 0.0)) - c,
+                    m.transform_point3(Vec3::new(-1.0, 1.0, 0.0)) - c,
+                )
+            }
+            _ => {
+                return Err(self.err(
+                    key,
+                    "expected either 'corner', 'edge_u' and 'edge_v', or 'transform' (a unit quad placed by it)",
+                ))
+            }
+        };
+        if edge_u.cross(edge_v).length_squared() == 0.0 {
+            return Err(self.err(
+                key,
+                format!(
+                    "expected edges spanning a quad of non-zero area, got edge_u = {} and edge_v = {}",
+                    fmt3(edge_u.to_array()),
+                    fmt3(edge_v.to_array())
+                ),
+            ));
+        }
+        Ok(Portal { corner, edge_u, edge_v })
+    }
+
+    fn render(
+        &self,
+        integrator: Option<toml::Table>,
+        r: RenderSettingsDesc,
+        accel_override: Option<AccelKind>,
+    ) -> Result<RenderDesc, SceneError> {
+        let mut params = integrator.unwrap_or_default();
+        let integrator = match params.remove("type") {
+            None => "pt".to_string(),
+            Some(toml::Value::String(s)) => s,
+            Some(other) => {
+                return Err(self.err("integrator.type", format!("expected a string (an integrator name), got {other}")))
+            }
+        };
+        let spp = match r.spp {
+            None => None,
+            Some(n) if n > 0 => Some(n as u64),
+            Some(n) => return Err(self.err("render.spp", format!("expected an integer > 0, got {n}"))),
+        };
+        let time = match r.time {
+            None => None,
+            Some(t) if t > 0.0 && t.is_finite() => Some(t),
+            Some(t) => return Err(self.err("render.time", format!("expected a number of seconds > 0, got {t}"))),
+        };
+        if spp.is_some() && time.is_some() {
+            return Err(self.err("render", "expected either 'spp' or 'time' as the budget, not both"));
+        }
+        let seed = match r.seed {
+            None => 0,
+            Some(s) if s >= 0 => s as u64,
+            Some(s) => return Err(self.err("render.seed", format!("expected an integer ≥ 0, got {s}"))),
+        };
+        let threads = match r.threads {
+            None => None,
+            Some(n) if n > 0 => Some(n as usize),
+            Some(n) => return Err(self.err("render.threads", format!("expected an integer > 0, got {n}"))),
+        };
+        Ok(RenderDesc {
+            integrator,
+            integrator_params: params,
+            spp,
+            time,
+            seed,
+            threads,
+            outputs: r.output.into_iter().map(PathBuf::from).collect(),
+            accel: accel_override.or(r.accel).unwrap_or_default(),
+        })
+    }
+
+    fn finite_vec(&self, key: &str, v: [f32; 3]) -> Result<Vec3, SceneError> {
+        let v3 = Vec3::from(v);
+        if v3.is_finite() {
+            Ok(v3)
+        } else {
+            Err(self.err(key, format!("expected three finite numbers, got {}", fmt3(v))))
+        }
+    }
+
+    /// A colour whose every component passes `ok` (and is finite).
+    fn color(&self, key: &str, c: ColorDesc, what: &str, ok: impl Fn(f32) -> bool) -> Result<Rgb, SceneError> {
+        if c.0.iter().all(|&v| v.is_finite() && ok(v)) {
+            Ok(Rgb::from(c.0))
+        } else {
+            Err(self.err(key, format!("expected [r, g, b] with {what}, got {}", fmt3(c.0))))
+        }
+    }
+
+    fn reflectance(&self, key: &str, c: Option<ColorDesc>, default: f32) -> Result<Rgb, SceneError> {
+        match c {
+            None => Ok(Rgb::splat(default)),
+            Some(c) => self.color(key, c, "every component in [0, 1]", |v| (0.0..=1.0).contains(&v)),
+        }
+    }
+
+    fn roughness(&self, key: &str, r: Option<f32>) -> Result<f32, SceneError> {
+        match r {
+            None => Ok(DEFAULT_ROUGHNESS),
+            Some(a) if a >= 0.0 && a.is_finite() => Ok(a),
+            Some(a) => Err(self.err(key, format!("expected a number ≥ 0 (the GGX alpha), got {a}"))),
+        }
+    }
+
+    fn ior(&self, key: &str, ior: Option<f32>) -> Result<f32, SceneError> {
+        match ior {
+            None => Ok(DEFAULT_IOR),
+            Some(v) if v > 0.0 && v.is_finite() => Ok(v),
+            Some(v) => Err(self.err(key, format!("expected a number > 0, got {v}"))),
+        }
+    }
+}
+
+/// Roughness (GGX alpha) when a conductor or plastic gives none.
+pub const DEFAULT_ROUGHNESS: f32 = 0.1;
+/// Index of refraction when a dielectric or plastic gives none (glass).
+pub const DEFAULT_IOR: f32 = 1.5;
+
+fn fmt3(v: [f32; 3]) -> String {
+    format!("[{}, {}, {}]", v[0], v[1], v[2])
+}
