@@ -142,6 +142,67 @@ pub struct LightSampler {
     pub distribution: Distribution1D,
 }
 
+impl AreaLight {
+    /// An area light over every triangle of `mesh` (the scene's mesh `geom_id`), triangles chosen
+    /// by area.
+    pub fn new(mesh: Arc<TriangleMesh>, geom_id: u32, radiance: Rgb, two_sided: bool) -> AreaLight {
+        let areas: Vec<f32> = (0..mesh.triangle_count() as u32).map(|i| mesh.triangle_area(i)).collect();
+        let area = areas.iter().map(|&a| a as f64).sum::<f64>() as f32;
+        AreaLight { triangles: Distribution1D::new(&areas), mesh, geom_id, radiance, two_sided, area }
+    }
+}
+
+impl ConstantEnvironment {
+    /// A constant environment around a scene bounded by `scene_bounds`.
+    pub fn new(radiance: Rgb, scene_bounds: crate::geometry::Aabb) -> ConstantEnvironment {
+        let (scene_center, scene_radius) = scene_bounds.bounding_sphere();
+        ConstantEnvironment { radiance, scene_center, scene_radius: scene_radius.max(1e-3) }
+    }
+}
+
+impl ImageEnvironment {
+    /// An equirectangular environment of `width`×`height` row-major texels (row 0 at +y), scaled by
+    /// `scale`, with `to_local` the world-to-map rotation. Texels are importance-sampled in
+    /// proportion to luminance × sin θ (the equirectangular map's area distortion).
+    pub fn new(
+        width: usize,
+        height: usize,
+        texels: Vec<Rgb>,
+        scale: f32,
+        to_local: glam::Mat3,
+        scene_bounds: crate::geometry::Aabb,
+    ) -> ImageEnvironment {
+        let mut weights = vec![0.0f32; width * height];
+        for v in 0..height {
+            let sin_theta = (std::f32::consts::PI * (v as f32 + 0.5) / height as f32).sin();
+            for u in 0..width {
+                let t = texels.get(v * width + u).copied().unwrap_or(Rgb::ZERO);
+                weights[v * width + u] = crate::spectrum::luminance(t).max(0.0) * sin_theta;
+            }
+        }
+        let distribution = crate::sampling::Distribution2D::new(&weights, width, height);
+        let (scene_center, scene_radius) = scene_bounds.bounding_sphere();
+        ImageEnvironment {
+            width,
+            height,
+            texels,
+            scale,
+            to_local,
+            distribution,
+            scene_center,
+            scene_radius: scene_radius.max(1e-3),
+        }
+    }
+}
+
+impl LightSampler {
+    /// Selection proportional to each light's power; all-zero power gives uniform selection.
+    pub fn new(lights: &[Light]) -> LightSampler {
+        let power: Vec<f32> = lights.iter().map(|l| l.power()).collect();
+        LightSampler { distribution: Distribution1D::new(&power) }
+    }
+}
+
 /// Unused import guard for Vec2 until implementations land.
 #[allow(dead_code)]
 fn _uses(_: Vec2) {}
