@@ -1,3 +1,108 @@
+//! Generates the Embree 3 bindings (bindgen over ffi/embree.h) and compiles the OpenImageIO shim
+//! (ffi/oiio_shim.cpp), then links embree3, OpenImageIO and OpenImageIO_Util.
+//!
+//! Everything here needs Debian 12's development packages; when one is missing the build stops
+//! with a message saying which and how to install them.
+
+use std::env;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const INSTALL_HINT: &str = "install the native dependencies with: \
+     sudo apt-get install -y libembree-dev libopenimageio-dev libclang-dev";
+
+fn fail(what: &str) -> ! {
+    // A panic in a build script prints its message; the hint is what a new user needs.
+    panic!("\n\nplexus build: {what}\n{INSTALL_HINT}\n\n");
+}
+
+/// Include directories and library directories that pkg-config reports for `package`, or None if
+/// pkg-config or the package is unavailable.
+fn pkg_config(package: &str) -> Option<(Vec<PathBuf>, Vec<PathBuf>)> {
+    let out = Command::new("pkg-config").args(["--cflags", "--libs", package]).output().ok()?;
+    if !out.status.success() {
+        return None;
+    }
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    let mut includes = Vec::new();
+    let mut libdirs = Vec::new();
+    for token in text.split_whitespace() {
+        if let Some(dir) = token.strip_prefix("-I") {
+            includes.push(PathBuf::from(dir));
+        } else if let Some(dir) = token.strip_prefix("-L") {
+            libdirs.push(PathBuf::from(dir));
+        }
+    }
+    Some((includes, libdirs))
+}
+
+/// The first of `extra` followed by the system include directories that contains `header`.
+fn find_header(header: &str, extra: &[PathBuf]) -> Option<PathBuf> {
+    let system = [PathBuf::from("/usr/include"), PathBuf::from("/usr/local/include")];
+    extra.iter().chain(system.iter()).find(|dir| dir.join(header).is_file()).cloned()
+}
+
 fn main() {
-    let _ = (bindgen::builder, cc::Build::new);
+    println!("cargo:rerun-if-changed=build.rs");
+    println!("cargo:rerun-if-changed=ffi/embree.h");
+    println!("cargo:rerun-if-changed=ffi/oiio_shim.h");
+    println!("cargo:rerun-if-changed=ffi/oiio_shim.cpp");
+    println!("cargo:rerun-if-env-changed=EMBREE_DIR");
+
+    let out_dir = PathBuf::from(env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
+
+    // --- Embree 3: no pkg-config file on Debian, so look for the header and link by name. ---
+    let embree_dir = env::var_os("EMBREE_DIR").map(PathBuf::from);
+    let mut embree_includes = Vec::new();
+    if let Some(dir) = &embree_dir {
+        embree_includes.push(dir.join("include"));
+        println!("cargo:rustc-link-search=native={}", dir.join("lib").display());
+    }
+    let Some(embree_include) = find_header("embree3/rtcore.h", &embree_includes) else {
+        fail("the Embree 3 header <embree3/rtcore.h> was not found (package libembree-dev)");
+    };
+    println!("cargo:rustc-link-lib=dylib=embree3");
+
+    // bindgen loads libclang at run time and panics if it cannot; turn that into the same hint.
+    let header = Path::new("ffi/embree.h");
+    let generated = std::panic::catch_unwind(|| {
+        bindgen::Builder::default()
+            .header(header.to_string_lossy())
+            .clang_arg(format!("-I{}", embree_include.display()))
+            .allowlist_function("rtc.*")
+            .allowlist_type("RTC.*")
+            .allowlist_var("RTC.*")
+            .default_enum_style(bindgen::EnumVariation::Consts)
+            .prepend_enum_name(false)
+            .derive_default(true)
+            .layout_tests(false)
+            .generate()
+    });
+    let bindings = match generated {
+        Ok(Ok(b)) => b,
+        Ok(Err(e)) => fail(&format!("bindgen could not process ffi/embree.h: {e}")),
+        Err(_) => fail("bindgen could not run (libclang missing? package libclang-dev)"),
+    };
+    bindings
+        .write_to_file(out_dir.join("embree_sys.rs"))
+        .unwrap_or_else(|e| fail(&format!("could not write the Embree bindings to OUT_DIR: {e}")));
+
+    // --- OpenImageIO: pkg-config when available, otherwise the system paths. ---
+    let (oiio_includes, oiio_libdirs) = pkg_config("OpenImageIO").unwrap_or_default();
+    if find_header("OpenImageIO/imageio.h", &oiio_includes).is_none() {
+        fail("the OpenImageIO header <OpenImageIO/imageio.h> was not found (package libopenimageio-dev)");
+    }
+    for dir in &oiio_libdirs {
+        println!("cargo:rustc-link-search=native={}", dir.display());
+    }
+    let mut shim = cc::Build::new();
+    shim.cpp(true).std("c++17").file("ffi/oiio_shim.cpp").include("ffi").warnings(true);
+    for dir in &oiio_includes {
+        shim.include(dir);
+    }
+    if let Err(e) = shim.try_compile("plexus_oiio_shim") {
+        fail(&format!("compiling ffi/oiio_shim.cpp failed: {e}"));
+    }
+    println!("cargo:rustc-link-lib=dylib=OpenImageIO");
+    println!("cargo:rustc-link-lib=dylib=OpenImageIO_Util");
 }

@@ -1,0 +1,135 @@
+// C interface to OpenImageIO's writer (see oiio_shim.h). Every entry point catches every C++
+// exception: unwinding into Rust is undefined behaviour.
+
+#include "oiio_shim.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <cstring>
+#include <exception>
+#include <initializer_list>
+#include <string>
+
+namespace {
+
+// Copies `text` into the caller's buffer, always NUL-terminated, truncated if needed.
+void set_message(char *msg, size_t msg_len, const std::string &text) noexcept {
+    if (msg == nullptr || msg_len == 0) {
+        return;
+    }
+    size_t n = text.size() < msg_len - 1 ? text.size() : msg_len - 1;
+    std::memcpy(msg, text.data(), n);
+    msg[n] = '\0';
+}
+
+// Writes `a` followed by `b` without allocating, so it is safe inside a catch handler.
+void set_message_raw(char *msg, size_t msg_len, const char *a, const char *b) noexcept {
+    if (msg == nullptr || msg_len == 0) {
+        return;
+    }
+    size_t n = 0;
+    for (const char *s : {a, b}) {
+        for (; s != nullptr && *s != '\0' && n + 1 < msg_len; ++s) {
+            msg[n++] = *s;
+        }
+    }
+    msg[n] = '\0';
+}
+
+int fail(char *msg, size_t msg_len, int code, const std::string &text) noexcept {
+    try {
+        set_message(msg, msg_len, text.empty() ? std::string("unknown OpenImageIO error") : text);
+    } catch (...) {
+    }
+    return code;
+}
+
+std::string global_error() {
+    std::string e = OIIO::geterror();
+    return e;
+}
+
+int write_image(const char *path, int width, int height, int channels, int data_type, const void *data,
+                int pixel_type, char *msg, size_t msg_len) {
+    if (path == nullptr || data == nullptr) {
+        return fail(msg, msg_len, PLX_ERR_ARGUMENT, "null path or pixel buffer");
+    }
+    if (width <= 0 || height <= 0 || channels <= 0) {
+        return fail(msg, msg_len, PLX_ERR_ARGUMENT,
+                    "invalid image size " + std::to_string(width) + "x" + std::to_string(height) + "x" +
+                        std::to_string(channels));
+    }
+    OIIO::TypeDesc in_type;
+    switch (data_type) {
+    case PLX_DATA_FLOAT: in_type = OIIO::TypeDesc::FLOAT; break;
+    case PLX_DATA_UINT8: in_type = OIIO::TypeDesc::UINT8; break;
+    default: return fail(msg, msg_len, PLX_ERR_ARGUMENT, "unknown data type " + std::to_string(data_type));
+    }
+    OIIO::TypeDesc file_type;
+    switch (pixel_type) {
+    case PLX_PIXEL_FLOAT: file_type = OIIO::TypeDesc::FLOAT; break;
+    case PLX_PIXEL_HALF: file_type = OIIO::TypeDesc::HALF; break;
+    case PLX_PIXEL_UINT8: file_type = OIIO::TypeDesc::UINT8; break;
+    default: return fail(msg, msg_len, PLX_ERR_ARGUMENT, "unknown pixel type " + std::to_string(pixel_type));
+    }
+
+    auto out = OIIO::ImageOutput::create(path);
+    if (!out) {
+        return fail(msg, msg_len, PLX_ERR_FORMAT, global_error());
+    }
+    OIIO::ImageSpec spec(width, height, channels, file_type);
+    // 8-bit data has been tone mapped and encoded with the sRGB OETF; float data is scene-linear.
+    spec.attribute("oiio:ColorSpace", data_type == PLX_DATA_UINT8 ? "sRGB" : "Linear");
+    spec.attribute("Software", "plexus");
+    if (!out->open(path, spec)) {
+        return fail(msg, msg_len, PLX_ERR_OPEN, out->geterror());
+    }
+    if (!out->write_image(in_type, data)) {
+        std::string e = out->geterror();
+        out->close();
+        return fail(msg, msg_len, PLX_ERR_WRITE, e);
+    }
+    if (!out->close()) {
+        return fail(msg, msg_len, PLX_ERR_CLOSE, out->geterror());
+    }
+    return PLX_OK;
+}
+
+int can_write(const char *filename, char *msg, size_t msg_len) {
+    if (filename == nullptr) {
+        return fail(msg, msg_len, PLX_ERR_ARGUMENT, "null file name");
+    }
+    // create() only looks the writer up by extension; it neither opens nor creates the file.
+    auto out = OIIO::ImageOutput::create(filename);
+    if (!out) {
+        return fail(msg, msg_len, PLX_ERR_FORMAT, global_error());
+    }
+    return PLX_OK;
+}
+
+}  // namespace
+
+extern "C" int plx_oiio_write_image(const char *path, int width, int height, int channels, int data_type,
+                                    const void *data, int pixel_type, char *msg, size_t msg_len) noexcept {
+    try {
+        return write_image(path, width, height, channels, data_type, data, pixel_type, msg, msg_len);
+    } catch (const std::exception &e) {
+        set_message_raw(msg, msg_len, "C++ exception: ", e.what());
+        return PLX_ERR_EXCEPTION;
+    } catch (...) {
+        set_message_raw(msg, msg_len, "unknown C++ exception", nullptr);
+        return PLX_ERR_EXCEPTION;
+    }
+}
+
+extern "C" int plx_oiio_can_write(const char *filename, char *msg, size_t msg_len) noexcept {
+    try {
+        return can_write(filename, msg, msg_len);
+    } catch (const std::exception &e) {
+        set_message_raw(msg, msg_len, "C++ exception: ", e.what());
+        return PLX_ERR_EXCEPTION;
+    } catch (...) {
+        set_message_raw(msg, msg_len, "unknown C++ exception", nullptr);
+        return PLX_ERR_EXCEPTION;
+    }
+}

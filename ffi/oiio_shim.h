@@ -1,0 +1,47 @@
+/* A small C interface to OpenImageIO's image writer, for Rust.
+ *
+ * Every function returns PLX_OK (0) or one of the error codes below and, on error, writes a
+ * NUL-terminated message into `msg` (truncated to `msg_len` bytes, `msg` may be NULL when
+ * `msg_len` is 0). No C++ exception ever leaves these functions. */
+#pragma once
+
+#include <stddef.h>
+
+#ifdef __cplusplus
+#define PLX_NOEXCEPT noexcept
+extern "C" {
+#else
+#define PLX_NOEXCEPT
+#endif
+
+/* Type of the caller's pixel buffer. */
+enum plx_data_type { PLX_DATA_FLOAT = 0, PLX_DATA_UINT8 = 1 };
+
+/* Pixel type stored in the file (the writer converts; formats that cannot store it get the
+ * closest type they support, as OpenImageIO decides). */
+enum plx_pixel_type { PLX_PIXEL_FLOAT = 0, PLX_PIXEL_HALF = 1, PLX_PIXEL_UINT8 = 2 };
+
+enum plx_status {
+    PLX_OK = 0,
+    PLX_ERR_ARGUMENT = 1,  /* null pointer, non-positive size, unknown enum value */
+    PLX_ERR_FORMAT = 2,    /* no OpenImageIO writer for this file name's extension */
+    PLX_ERR_OPEN = 3,      /* the writer could not create/open the file */
+    PLX_ERR_WRITE = 4,     /* writing the pixels failed */
+    PLX_ERR_CLOSE = 5,     /* flushing/closing the file failed */
+    PLX_ERR_EXCEPTION = 6  /* a C++ exception was caught */
+};
+
+/* Writes a `width` x `height` image with `channels` interleaved channels, row 0 at the top, to
+ * `path`; the format is chosen by the extension of `path`. `data` holds
+ * width*height*channels values of `data_type`. `pixel_type` is what the file stores. 8-bit data is
+ * tagged as sRGB, float data as linear. */
+int plx_oiio_write_image(const char *path, int width, int height, int channels, int data_type,
+                         const void *data, int pixel_type, char *msg, size_t msg_len) PLX_NOEXCEPT;
+
+/* PLX_OK if OpenImageIO has a writer for the extension of `filename` (nothing is opened or
+ * created), PLX_ERR_FORMAT otherwise. */
+int plx_oiio_can_write(const char *filename, char *msg, size_t msg_len) PLX_NOEXCEPT;
+
+#ifdef __cplusplus
+}
+#endif
