@@ -16,6 +16,7 @@
 
 pub mod connect;
 pub mod mis;
+pub mod path;
 pub mod subpath;
 pub mod vertex;
 
