@@ -120,3 +120,8 @@ fn is_key(s: &str) -> bool {
 fn backticked(s: &str) -> Vec<&str> {
     s.split('`').skip(1).step_by(2).collect()
 }
+
+/// `[a, b, c]` with each number in its shortest form, as scene files write them.
+pub(crate) fn fmt3(v: [f32; 3]) -> String {
+    format!("[{}, {}, {}]", v[0], v[1], v[2])
+}

@@ -11,13 +11,13 @@ use glam::{Mat3, Mat4, Vec3};
 use super::desc::{
     CameraDesc, ColorDesc, EnvironmentDesc, MaterialDesc, PortalDesc, RenderSettingsDesc, SceneDesc, ShapeDesc,
 };
-use super::error::SceneError;
+use super::error::{fmt3, SceneError};
 use super::mesh_io::{self, RawMesh};
 use super::{pending, shapes, transform, Portal, Scene, ShapeInfo};
 use crate::accel::{self, AccelKind};
 use crate::camera::Camera;
 use crate::geometry::{Aabb, TriangleMesh};
-use crate::light::Light;
+use crate::light::{AreaLight, ConstantEnvironment, ImageEnvironment, Light, LightSampler};
 use crate::material::Material;
 use crate::spectrum::Rgb;
 
@@ -110,7 +110,7 @@ impl Builder<'_> {
             let mut info = s.info;
             if let Some((radiance, two_sided)) = s.emission {
                 info.light = Some(lights.len() as u32);
-                lights.push(Light::Area(pending::area_light(s.mesh.clone(), geom_id as u32, radiance, two_sided)));
+                lights.push(Light::Area(AreaLight::new(s.mesh.clone(), geom_id as u32, radiance, two_sided)));
             }
             meshes.push(s.mesh);
             infos.push(info);
@@ -130,7 +130,7 @@ impl Builder<'_> {
         }
         let portals = desc.portals.iter().enumerate().map(|(i, p)| self.portal(i, p)).collect::<Result<Vec<_>, _>>()?;
 
-        let light_sampler = pending::light_sampler(&lights);
+        let light_sampler = LightSampler::new(&lights);
         let accel = accel::build(render.accel, &meshes).map_err(|e| SceneError::Accel {
             file: self.file.to_string(),
             accel: render.accel.to_string(),
@@ -393,7 +393,7 @@ impl Builder<'_> {
         if env.kind == "constant" {
             let c = env.radiance.ok_or_else(|| self.err("environment", "a 'constant' environment needs 'radiance'"))?;
             let radiance = self.color("environment.radiance", c, "every component ≥ 0", |v| v >= 0.0)?;
-            return Ok(Light::ConstantEnvironment(pending::constant_environment(radiance * scale, *bounds)));
+            return Ok(Light::ConstantEnvironment(ConstantEnvironment::new(radiance * scale, *bounds)));
         }
         let file = env
             .file
@@ -424,7 +424,7 @@ impl Builder<'_> {
         };
         // `rotate` turns the map in the world; lookups need the inverse, world to map.
         let to_local = rotation.transpose();
-        Ok(Light::ImageEnvironment(pending::image_environment(
+        Ok(Light::ImageEnvironment(ImageEnvironment::new(
             image.width,
             image.height,
             image.pixels,
@@ -567,7 +567,3 @@ impl Builder<'_> {
 pub const DEFAULT_ROUGHNESS: f32 = 0.1;
 /// Index of refraction when a dielectric or plastic gives none (glass).
 pub const DEFAULT_IOR: f32 = 1.5;
-
-fn fmt3(v: [f32; 3]) -> String {
-    format!("[{}, {}, {}]", v[0], v[1], v[2])
-}

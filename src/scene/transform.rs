@@ -4,6 +4,7 @@
 use glam::{Mat3, Mat4, Vec3};
 
 use super::desc::{Rotations, TransformDesc};
+use super::error::fmt3;
 use super::mesh_io::RawMesh;
 
 /// The rotation that applies `rotations` in the order given (the first one first).
@@ -13,7 +14,7 @@ pub fn rotation_matrix(rotations: &Rotations) -> Result<Mat3, String> {
         let axis = Vec3::from(rot.axis);
         let where_ = if rotations.0.len() > 1 { format!("rotate[{i}]") } else { "rotate".to_string() };
         if !axis.is_finite() || axis.length_squared() == 0.0 {
-            return Err(format!("{where_}.axis: expected a non-zero finite vector, got {:?}", rot.axis));
+            return Err(format!("{where_}.axis: expected a non-zero finite vector, got {}", fmt3(rot.axis)));
         }
         if !rot.angle.is_finite() {
             return Err(format!("{where_}.angle: expected a finite number of degrees, got {}", rot.angle));
@@ -31,17 +32,18 @@ pub fn matrix_from_desc(desc: &TransformDesc) -> Result<Mat4, String> {
             return Err("matrix: expected either 'matrix' or 'translate'/'rotate'/'scale', not both".to_string());
         }
         if rows.iter().flatten().any(|v| !v.is_finite()) {
-            return Err(format!("matrix: expected finite numbers, got {rows:?}"));
+            return Err("matrix: expected finite numbers, got a NaN or infinity".to_string());
         }
         if rows[3] != [0.0, 0.0, 0.0, 1.0] {
-            return Err(format!("matrix: expected an affine matrix (last row [0, 0, 0, 1]), got {:?}", rows[3]));
+            let [a, b, c, d] = rows[3];
+            return Err(format!("matrix: expected an affine matrix (last row [0, 0, 0, 1]), got [{a}, {b}, {c}, {d}]"));
         }
         // The file lists rows; glam stores columns.
         Mat4::from_cols_array_2d(&rows).transpose()
     } else {
         let s = desc.scale.map_or(Vec3::ONE, |s| Vec3::from(s.0));
         if !s.is_finite() {
-            return Err(format!("scale: expected finite numbers, got {:?}", s.to_array()));
+            return Err(format!("scale: expected finite numbers, got {}", fmt3(s.to_array())));
         }
         let r = match &desc.rotate {
             Some(rot) => rotation_matrix(rot)?,
@@ -49,7 +51,7 @@ pub fn matrix_from_desc(desc: &TransformDesc) -> Result<Mat4, String> {
         };
         let t = Vec3::from(desc.translate.unwrap_or([0.0; 3]));
         if !t.is_finite() {
-            return Err(format!("translate: expected finite numbers, got {:?}", t.to_array()));
+            return Err(format!("translate: expected finite numbers, got {}", fmt3(t.to_array())));
         }
         Mat4::from_translation(t) * Mat4::from_mat3(r) * Mat4::from_scale(s)
     };
