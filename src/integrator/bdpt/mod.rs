@@ -177,38 +177,69 @@ impl Bdpt {
         let raster =
             generate_camera_subpath(ctx, FilmRegion::Pixel(pixel), rng, max_depth + 2, &mut slot.camera, counters);
         generate_light_subpath(ctx, rng, max_depth + 1, &mut slot.light, counters);
-        let (camera, light) = (&slot.camera, &slot.light);
-        for t in 1..=camera.len() {
-            for s in 0..=light.len() {
-                let depth = (s + t) as isize - 2;
-                if (s == 1 && t == 1) || depth < 0 || depth as usize > max_depth {
-                    continue;
-                }
-                let Some(c) =
-                    evaluate_technique(ctx, light, camera, s, t, raster, rng, &mut slot.scratch, counters, None)
-                else {
-                    continue;
-                };
+        let techniques = &mut slot.techniques;
+        connect_all(
+            ctx,
+            &slot.light,
+            &slot.camera,
+            raster,
+            max_depth,
+            rng,
+            &mut slot.scratch,
+            counters,
+            |c, counters| {
                 let value = c.weighted();
                 if !is_finite(value) || !is_finite(c.contribution) {
                     counters.nonfinite_dropped += 1;
-                    continue;
+                    return;
                 }
-                if t == 1 {
-                    film.splat(c.raster, value);
-                } else {
+                // t ≥ 2 contributions belong to the sampled pixel (c.raster lies inside it).
+                let at_pixel = c.t >= 2;
+                if at_pixel {
                     film.add(pixel.x as usize, pixel.y as usize, value);
+                } else {
+                    film.splat(c.raster, value);
                 }
-                if let Some(tf) = slot.techniques.as_mut() {
-                    let i = tf.slot(s, t);
-                    if t == 1 {
-                        tf.weighted[i].splat(c.raster, value);
-                        tf.unweighted[i].splat(c.raster, c.contribution);
-                    } else {
+                if let Some(tf) = techniques.as_mut() {
+                    let i = tf.slot(c.s, c.t);
+                    if at_pixel {
                         tf.weighted[i].add(pixel.x as usize, pixel.y as usize, value);
                         tf.unweighted[i].add(pixel.x as usize, pixel.y as usize, c.contribution);
+                    } else {
+                        tf.weighted[i].splat(c.raster, value);
+                        tf.unweighted[i].splat(c.raster, c.contribution);
                     }
                 }
+            },
+        );
+    }
+}
+
+/// Evaluates every technique (s, t) of BDPT on one pair of subpaths — all s ≤ light.len(),
+/// 1 ≤ t ≤ camera.len() with s + t − 2 ≤ max_depth, except (1, 1) — and hands each non-zero one to
+/// `sink` (with the counters, for dropping non-finite values). This is BDPT's estimator for one
+/// sample and PSSMLT's path contribution (MMLT paper Alg. 1, COMBINE); s = 1 techniques read
+/// `CONNECTION_DIMS` numbers each from `connection`, in increasing t.
+#[allow(clippy::too_many_arguments)]
+pub fn connect_all<S: PathSampler>(
+    ctx: &BdptContext,
+    light: &[Vertex],
+    camera: &[Vertex],
+    raster: glam::Vec2,
+    max_depth: usize,
+    connection: &mut S,
+    scratch: &mut ConnectScratch,
+    counters: &mut Counters,
+    mut sink: impl FnMut(&TechniqueSample, &mut Counters),
+) {
+    for t in 1..=camera.len() {
+        for s in 0..=light.len() {
+            let depth = (s + t) as isize - 2;
+            if (s == 1 && t == 1) || depth < 0 || depth as usize > max_depth {
+                continue;
+            }
+            if let Some(c) = evaluate_technique(ctx, light, camera, s, t, raster, connection, scratch, counters, None) {
+                sink(&c, counters);
             }
         }
     }
