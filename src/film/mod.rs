@@ -4,6 +4,7 @@
 
 pub mod exr_io;
 pub mod oiio;
+pub mod tonemap;
 
 use glam::Vec2;
 

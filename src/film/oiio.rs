@@ -1,1 +1,275 @@
-//! PLACEHOLDER until the FFI work lands.
+//! Writing images through OpenImageIO (the C shim in ffi/oiio_shim.cpp).
+//!
+//! The format follows the file extension. Floating-point formats (`.exr`, `.hdr`, `.tif`/`.tiff`,
+//! `.pfm`) receive the linear image unchanged: `.exr` as 32-bit float, or half with
+//! [`WriteOptions::half`]. Every other format OpenImageIO can write (`.png`, `.jpg`, `.bmp`, ...)
+//! receives 8-bit sRGB from the display transform in [`super::tonemap`].
+//!
+//! Images are written to a hidden temporary file in the target directory and renamed over the
+//! requested name only once complete, so a crash never leaves a truncated image under that name.
+
+use std::ffi::{c_char, c_int, c_void, CString};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use thiserror::Error;
+
+use super::{tonemap, Image};
+
+// Declarations matching ffi/oiio_shim.h (kept by hand: two functions and a few constants).
+const PLX_DATA_FLOAT: c_int = 0;
+const PLX_DATA_UINT8: c_int = 1;
+const PLX_PIXEL_FLOAT: c_int = 0;
+const PLX_PIXEL_HALF: c_int = 1;
+const PLX_PIXEL_UINT8: c_int = 2;
+const PLX_OK: c_int = 0;
+
+extern "C" {
+    fn plx_oiio_write_image(
+        path: *const c_char,
+        width: c_int,
+        height: c_int,
+        channels: c_int,
+        data_type: c_int,
+        data: *const c_void,
+        pixel_type: c_int,
+        msg: *mut c_char,
+        msg_len: usize,
+    ) -> c_int;
+    fn plx_oiio_can_write(filename: *const c_char, msg: *mut c_char, msg_len: usize) -> c_int;
+}
+
+/// Why an image could not be written (or an output path was refused up front).
+#[derive(Debug, Error)]
+pub enum ImageWriteError {
+    #[error("cannot write '{path}': output directory '{dir}' does not exist")]
+    MissingDirectory { path: PathBuf, dir: PathBuf },
+    #[error("cannot write '{path}': '{dir}' is not a directory")]
+    NotADirectory { path: PathBuf, dir: PathBuf },
+    #[error("cannot write '{path}': the file name has no extension to choose an image format by")]
+    NoExtension { path: PathBuf },
+    #[error("cannot write '{path}': OpenImageIO cannot write '.{extension}' files")]
+    UnsupportedFormat { path: PathBuf, extension: String },
+    #[error("cannot write '{path}': the path contains a NUL byte or is not valid text")]
+    InvalidPath { path: PathBuf },
+    #[error("cannot write '{path}': the image is {width}x{height} with {pixels} pixels; expected a non-empty image with width*height pixels, each side below 2^31")]
+    BadImage { path: PathBuf, width: usize, height: usize, pixels: usize },
+    #[error("cannot write '{path}': OpenImageIO: {message}")]
+    Oiio { path: PathBuf, message: String },
+    #[error("cannot write '{path}': {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+}
+
+/// How the image is stored in the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Encoding {
+    /// Linear, 32-bit float.
+    Float,
+    /// Linear, 16-bit half float.
+    Half,
+    /// 8-bit sRGB after the display transform.
+    Srgb8,
+}
+
+/// Options for [`write_image`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WriteOptions {
+    /// Store `.exr` files as half floats instead of 32-bit floats.
+    pub half: bool,
+    /// Exposure in stops applied before the display transform of 8-bit outputs (float outputs are
+    /// never scaled).
+    pub exposure: f32,
+}
+
+impl Default for WriteOptions {
+    fn default() -> Self {
+        WriteOptions { half: false, exposure: 0.0 }
+    }
+}
+
+/// The lower-case extension of `path`, if any.
+fn extension(path: &Path) -> Option<String> {
+    path.extension().map(|e| e.to_string_lossy().to_lowercase()).filter(|e| !e.is_empty())
+}
+
+/// How an image written to `path` with `opts` will be stored.
+pub fn encoding_for(path: &Path, opts: &WriteOptions) -> Encoding {
+    match extension(path).as_deref() {
+        Some("exr") if opts.half => Encoding::Half,
+        Some("exr" | "hdr" | "tif" | "tiff" | "pfm") => Encoding::Float,
+        _ => Encoding::Srgb8,
+    }
+}
+
+fn c_path(path: &Path) -> Result<CString, ImageWriteError> {
+    let invalid = || ImageWriteError::InvalidPath { path: path.to_path_buf() };
+    #[cfg(unix)]
+    let bytes = {
+        use std::os::unix::ffi::OsStrExt;
+        path.as_os_str().as_bytes().to_vec()
+    };
+    #[cfg(not(unix))]
+    let bytes = path.to_str().ok_or_else(invalid)?.as_bytes().to_vec();
+    CString::new(bytes).map_err(|_| invalid())
+}
+
+/// The text the shim wrote into `buf` (up to its NUL).
+fn message(buf: &[u8]) -> String {
+    let end = buf.iter().position(|&b| b == 0).unwrap_or(buf.len());
+    String::from_utf8_lossy(&buf[..end]).trim().to_string()
+}
+
+/// The directory `path` will be written into (`.` for a bare file name).
+fn target_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    }
+}
+
+/// Checks, without writing anything, that an image could be written to `path`: its directory
+/// exists and OpenImageIO has a writer for its extension. Call it before a long render.
+pub fn check_output_path(path: &Path) -> Result<(), ImageWriteError> {
+    let dir = target_dir(path);
+    if !dir.exists() {
+        return Err(ImageWriteError::MissingDirectory { path: path.to_path_buf(), dir: dir.to_path_buf() });
+    }
+    if !dir.is_dir() {
+        return Err(ImageWriteError::NotADirectory { path: path.to_path_buf(), dir: dir.to_path_buf() });
+    }
+    let Some(ext) = extension(path) else {
+        return Err(ImageWriteError::NoExtension { path: path.to_path_buf() });
+    };
+    // Only the extension matters to OpenImageIO's lookup; passing a synthetic name keeps odd
+    // characters elsewhere in the path out of the question.
+    let probe =
+        CString::new(format!("probe.{ext}")).map_err(|_| ImageWriteError::InvalidPath { path: path.to_path_buf() })?;
+    let mut buf = [0u8; 512];
+    // SAFETY: `probe` is NUL-terminated; `buf` is writable for `buf.len()` bytes; the shim never
+    // throws across the boundary.
+    let status = unsafe { plx_oiio_can_write(probe.as_ptr(), buf.as_mut_ptr() as *mut c_char, buf.len()) };
+    if status != PLX_OK {
+        return Err(ImageWriteError::UnsupportedFormat { path: path.to_path_buf(), extension: ext });
+    }
+    Ok(())
+}
+
+/// A temporary file that is deleted on drop unless it was renamed into place.
+struct TempFile {
+    path: PathBuf,
+    armed: bool,
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        if self.armed {
+            // The file may never have been created; nothing useful can be done if removal fails.
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
+}
+
+/// A unique hidden name beside `path` that keeps its extension (OpenImageIO picks the format by it).
+fn temp_path(path: &Path, ext: &str) -> PathBuf {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    target_dir(path).join(format!(".{stem}.plexus-tmp-{}-{n}.{ext}", std::process::id()))
+}
+
+/// Writes `image` to `path` in the format its extension names (see the module documentation).
+pub fn write_image(path: &Path, image: &Image, opts: &WriteOptions) -> Result<(), ImageWriteError> {
+    check_output_path(path)?;
+    let bad_image = || ImageWriteError::BadImage {
+        path: path.to_path_buf(),
+        width: image.width,
+        height: image.height,
+        pixels: image.pixels.len(),
+    };
+    let (Ok(width), Ok(height)) = (c_int::try_from(image.width), c_int::try_from(image.height)) else {
+        return Err(bad_image());
+    };
+    if width == 0 || height == 0 || image.pixels.len() != image.width * image.height {
+        return Err(bad_image());
+    }
+
+    let encoding = encoding_for(path, opts);
+    let floats: Vec<f32>;
+    let bytes: Vec<u8>;
+    let (data_type, data, pixel_type): (c_int, *const c_void, c_int) = match encoding {
+        Encoding::Float | Encoding::Half => {
+            floats = image.pixels.iter().flat_map(|p| p.to_array()).collect();
+            let pixel = if encoding == Encoding::Half { PLX_PIXEL_HALF } else { PLX_PIXEL_FLOAT };
+            (PLX_DATA_FLOAT, floats.as_ptr() as *const c_void, pixel)
+        }
+        Encoding::Srgb8 => {
+            bytes = tonemap::tonemap_srgb8(image, opts.exposure);
+            (PLX_DATA_UINT8, bytes.as_ptr() as *const c_void, PLX_PIXEL_UINT8)
+        }
+    };
+
+    // `check_output_path` guaranteed an extension.
+    let ext = path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
+    let mut temp = TempFile { path: temp_path(path, &ext), armed: true };
+    let c_temp = c_path(&temp.path)?;
+    let mut buf = [0u8; 1024];
+    // SAFETY: `c_temp` is NUL-terminated; `data` points to width*height*3 values of `data_type`
+    // (`floats` or `bytes`, alive until the end of this function); `buf` is writable for its
+    // length; the shim catches every C++ exception.
+    let status = unsafe {
+        plx_oiio_write_image(
+            c_temp.as_ptr(),
+            width,
+            height,
+            3,
+            data_type,
+            data,
+            pixel_type,
+            buf.as_mut_ptr() as *mut c_char,
+            buf.len(),
+        )
+    };
+    if status != PLX_OK {
+        return Err(ImageWriteError::Oiio { path: path.to_path_buf(), message: message(&buf) });
+    }
+    std::fs::rename(&temp.path, path).map_err(|source| ImageWriteError::Io { path: path.to_path_buf(), source })?;
+    temp.armed = false;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn encodings_follow_the_extension() {
+        let o = WriteOptions::default();
+        let h = WriteOptions { half: true, ..o };
+        assert_eq!(encoding_for(Path::new("a/b.exr"), &o), Encoding::Float);
+        assert_eq!(encoding_for(Path::new("a/b.EXR"), &h), Encoding::Half);
+        assert_eq!(encoding_for(Path::new("b.hdr"), &h), Encoding::Float);
+        assert_eq!(encoding_for(Path::new("b.tif"), &o), Encoding::Float);
+        assert_eq!(encoding_for(Path::new("b.png"), &h), Encoding::Srgb8);
+        assert_eq!(encoding_for(Path::new("b.jpg"), &o), Encoding::Srgb8);
+    }
+
+    #[test]
+    fn output_paths_are_checked_before_rendering() {
+        assert!(check_output_path(Path::new("render.exr")).is_ok());
+        assert!(check_output_path(Path::new("render.png")).is_ok());
+        let e = check_output_path(Path::new("no/such/dir/render.exr")).unwrap_err().to_string();
+        assert!(e.contains("output directory 'no/such/dir' does not exist"), "{e}");
+        let e = check_output_path(Path::new("render.xyz")).unwrap_err().to_string();
+        assert!(e.contains("OpenImageIO cannot write '.xyz' files") && e.contains("render.xyz"), "{e}");
+        assert!(matches!(check_output_path(Path::new("render")), Err(ImageWriteError::NoExtension { .. })));
+    }
+
+    #[test]
+    fn malformed_images_are_refused() {
+        let dir = std::env::temp_dir();
+        let img = Image { width: 2, height: 2, pixels: vec![] };
+        let err = write_image(&dir.join("plexus-bad-image.exr"), &img, &WriteOptions::default()).unwrap_err();
+        assert!(matches!(err, ImageWriteError::BadImage { .. }), "{err}");
+        assert!(!dir.join("plexus-bad-image.exr").exists());
+    }
+}
