@@ -166,3 +166,37 @@ fn false_colour_image_uses_the_log_range() {
     assert!((img.pixels[2] - colour_map(0.5)).abs().max_element() < 1e-5);
     assert_eq!(img.pixels[3], Vec3::new(1.0, 0.0, 1.0));
 }
+
+/// The full figure with text (a system font when one exists, else none) is written and non-trivial.
+#[test]
+fn convergence_plot_is_written() {
+    use plexus::metrics::converge::{summarize, RunRecord};
+    let mut records = Vec::new();
+    for (name, k) in [("pt", 1.0), ("bdpt", 0.5)] {
+        for &t in &[1.0, 2.0, 4.0] {
+            for seed in 0..3u64 {
+                let mse = k / t * (1.0 + 0.1 * seed as f64);
+                records.push(RunRecord {
+                    integrator: name.into(),
+                    seed,
+                    budget: t,
+                    wall_time: t * 1.01,
+                    samples_or_mutations: (t * 16.0) as u64,
+                    rays: 1000,
+                    mse,
+                    relmse: 3.0 * mse,
+                    nonfinite_dropped: 0,
+                });
+            }
+        }
+    }
+    let dir = std::env::temp_dir().join(format!("plexus-metrics-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("converge.png");
+    plexus::metrics::plot::plot_convergence(&path, &summarize(&records), "synthetic 1/t").expect("plot");
+    assert!(std::fs::metadata(&path).expect("png").len() > 1000);
+    if let Ok(keep) = std::env::var("PLEXUS_KEEP_PLOT") {
+        std::fs::copy(&path, keep).expect("copy plot");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

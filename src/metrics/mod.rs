@@ -4,3 +4,4 @@
 
 pub mod compare;
 pub mod converge;
+pub mod plot;
