@@ -218,9 +218,10 @@ transform = { matrix = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, -3], [0, 0, 0, 1]]
     assert_eq!(s.shapes[2].name, "tri.obj");
     let b = s.meshes[2].bounds();
     assert_eq!((b.min.x, b.max.x, b.max.y), (10.0, 12.0, 2.0));
-    // Mirrored through z: winding is reversed so the front stays on the same (+z) side.
+    // Mirrored through z = 0: the side that faced +z now faces -z, and the winding is reversed
+    // so that the geometric normal agrees (as it keeps a closed mesh's normals pointing outwards).
     let [a, bb, c] = s.meshes[2].triangle(0);
-    assert!((bb - a).cross(c - a).z > 0.0);
+    assert!((bb - a).cross(c - a).z < 0.0);
     assert_eq!(s.meshes[3].triangle(0)[0], glam::Vec3::new(0.0, 0.0, -3.0));
 }
 
