@@ -1,1 +1,7 @@
-fn main() {}
+//! The `plexus` command: a thin shell over the library (argument parsing, progress, exit codes).
+
+mod cli;
+
+fn main() {
+    std::process::exit(cli::main());
+}

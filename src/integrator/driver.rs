@@ -103,6 +103,9 @@ pub struct RunOutput<U, S> {
     pub elapsed: Duration,
 }
 
+/// One slot and the units dealt to it (with their unit indices).
+type SlotWork<U, S> = (Slot<S>, Vec<(usize, U)>);
+
 /// A thread pool and the job's seed: runs passes of work items deterministically.
 pub struct Driver {
     pool: ThreadPool,
@@ -152,7 +155,7 @@ impl Driver {
         let unit_count = units.len();
         let threads = self.threads;
         // Deal the units to slots: unit u to slot u mod threads, keeping increasing unit order.
-        let mut per_slot: Vec<(Slot<S>, Vec<(usize, U)>)> = (0..threads)
+        let mut per_slot: Vec<SlotWork<U, S>> = (0..threads)
             .map(|i| {
                 let slot = Slot {
                     index: i,

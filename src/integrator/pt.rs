@@ -217,7 +217,8 @@ impl PathTracer {
             // Continue the path by sampling the BSDF.
             let u_bsdf = [rng.uniform(), rng.uniform(), rng.uniform()];
             let Some(bs) = material.sample(wo, u_bsdf, TransportMode::Radiance) else { break };
-            if !(bs.pdf > 0.0) || bs.f == Rgb::ZERO {
+            // Also rejects a NaN pdf.
+            if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO {
                 break;
             }
             beta *= bs.f * (bs.wi.z.abs() / bs.pdf);

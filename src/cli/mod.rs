@@ -1,0 +1,116 @@
+//! The command line: clap definitions, dispatch, and the error edge. Every failure ends as one line
+//! `error: ...` on stderr and an exit code: 2 for bad input or usage (scene files, settings, output
+//! paths, arguments), 1 for failures at run time (writing an image, an internal error).
+
+mod compare;
+mod converge;
+mod info;
+mod progress;
+mod render;
+mod stats_json;
+
+use clap::{Parser, Subcommand};
+
+/// Exit code for bad input or usage.
+pub const EXIT_BAD_INPUT: i32 = 2;
+/// Exit code for failures at run time.
+pub const EXIT_RUNTIME: i32 = 1;
+
+/// plexus: a physically based renderer for difficult light transport.
+#[derive(Debug, Parser)]
+#[command(name = "plexus", version, about, max_term_width = 100)]
+struct Cli {
+    #[command(subcommand)]
+    command: Commands,
+}
+
+#[derive(Debug, Subcommand)]
+enum Commands {
+    /// Render a scene (the built-in Cornell box when no scene is given).
+    Render(render::RenderArgs),
+    /// Print what a scene contains: triangles, emitters, materials, portals, bounds, memory.
+    Info(info::InfoArgs),
+    /// Compare an image with a reference: MSE, relative MSE, PSNR, ratio of means, error map.
+    Compare(compare::CompareArgs),
+    /// Error against a reference vs render time for several integrators, budgets and seeds.
+    Converge(converge::ConvergeArgs),
+    // Further verbs (compare, converge, bench, ...) go here, one variant each, with their
+    // argument struct in their own file under src/cli/ and one arm in `run` below.
+}
+
+/// An error caused by what the user gave us (arguments, files, settings): exit code 2.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct BadInput(pub String);
+
+/// Wraps any error as bad input (exit code 2), keeping its message.
+pub fn bad_input(e: impl std::fmt::Display) -> anyhow::Error {
+    anyhow::Error::new(BadInput(e.to_string()))
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Commands::Render(args) => render::run(args),
+        Commands::Info(args) => info::run(args),
+        Commands::Compare(args) => compare::run_compare(&args),
+        Commands::Converge(args) => converge::run_converge(&args),
+    }
+}
+
+/// The exit code an error deserves.
+fn exit_code(e: &anyhow::Error) -> i32 {
+    use plexus::integrator::RenderError;
+    for cause in e.chain() {
+        if cause.is::<BadInput>() || cause.is::<plexus::scene::SceneError>() {
+            return EXIT_BAD_INPUT;
+        }
+        if let Some(r) = cause.downcast_ref::<RenderError>() {
+            return match r {
+                RenderError::ThreadPool(_) => EXIT_RUNTIME,
+                _ => EXIT_BAD_INPUT,
+            };
+        }
+    }
+    EXIT_RUNTIME
+}
+
+/// Prints `error: <message>` as one line (causes joined by ": ").
+fn print_error(e: &anyhow::Error) {
+    let msg = format!("{e:#}").replace('\n', " ");
+    eprintln!("error: {msg}");
+}
+
+/// Runs the command line and returns the process exit code.
+pub fn main() -> i32 {
+    // A panic is a bug in plexus, but the user still gets one line, not a backtrace.
+    std::panic::set_hook(Box::new(|info| {
+        let msg = if let Some(s) = info.payload().downcast_ref::<&str>() {
+            (*s).to_string()
+        } else if let Some(s) = info.payload().downcast_ref::<String>() {
+            s.clone()
+        } else {
+            "unknown panic".to_string()
+        };
+        let at = info.location().map(|l| format!(" at {}:{}", l.file(), l.line())).unwrap_or_default();
+        eprintln!("error: internal error (a bug in plexus): {}{at}", msg.replace('\n', " "));
+    }));
+
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let code = if e.use_stderr() { EXIT_BAD_INPUT } else { 0 };
+            // clap formats usage errors itself ("error: ..." plus a usage hint); help and version
+            // go to stdout with exit code 0.
+            let _ = e.print();
+            return code;
+        }
+    };
+    match std::panic::catch_unwind(|| run(cli)) {
+        Ok(Ok(())) => 0,
+        Ok(Err(e)) => {
+            print_error(&e);
+            exit_code(&e)
+        }
+        Err(_) => EXIT_RUNTIME,
+    }
+}
