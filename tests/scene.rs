@@ -434,3 +434,33 @@ fn missing_scene_file_and_string_loading() {
     assert!(e.to_string().starts_with("inline.toml: "), "{e}");
     assert!(e.to_string().contains("missing key"), "{e}");
 }
+
+#[test]
+fn environment_errors_and_constant_environment() {
+    let dir = temp_dir("environment");
+    let (file, msg) = load_err(&dir, &scene_text("\n[environment]\ntype = \"image\"\nfile = \"nope.exr\"\n"));
+    let exr = dir.join("nope.exr");
+    assert!(msg.starts_with(&format!("{file}: environment.file: cannot read EXR file '{}': ", exr.display())), "{msg}");
+    let (file, msg) =
+        load_err(&dir, &scene_text("\n[environment]\ntype = \"constant\"\nradiance = 1\nfile = \"a.exr\"\n"));
+    assert_eq!(
+        msg,
+        format!("{file}: environment: key 'file' does not apply to type 'constant' (expected: type, radiance, scale)")
+    );
+    let (file, msg) = load_err(&dir, &scene_text("\n[environment]\ntype = \"constant\"\nradiance = [1, -2, 1]\n"));
+    assert_eq!(
+        msg,
+        format!("{file}: environment.radiance: expected [r, g, b] with every component ≥ 0, got [1, -2, 1]")
+    );
+
+    let path = dir.join("scene.toml");
+    fs::write(&path, scene_text("\n[environment]\ntype = \"constant\"\nradiance = 0.25\nscale = 2\n")).unwrap();
+    let s = load_ok(&path).scene;
+    let f = s.features();
+    assert!(f.constant_environment && !f.environment_distribution && f.image_environment.is_none());
+    assert_eq!(s.environment, Some(1), "the environment comes after the area lights");
+    match s.environment_light() {
+        Some((_, plexus::light::Light::ConstantEnvironment(c))) => assert_eq!(c.radiance, glam::Vec3::splat(0.5)),
+        _ => panic!("expected a constant environment"),
+    }
+}

@@ -13,7 +13,7 @@ use super::desc::{
 };
 use super::error::{fmt3, SceneError};
 use super::mesh_io::{self, RawMesh};
-use super::{pending, shapes, transform, Portal, Scene, ShapeInfo};
+use super::{shapes, transform, Portal, Scene, ShapeInfo};
 use crate::accel::{self, AccelKind};
 use crate::camera::Camera;
 use crate::geometry::{Aabb, TriangleMesh};
@@ -400,8 +400,7 @@ impl Builder<'_> {
             .as_deref()
             .ok_or_else(|| self.err("environment", "an 'image' environment needs 'file' (an EXR)"))?;
         let path = self.base_dir.join(file);
-        let image = pending::read_exr(&path)
-            .map_err(|e| self.err("environment.file", format!("image '{}': {e}", path.display())))?;
+        let image = crate::film::exr_io::read_exr(&path).map_err(|e| self.err("environment.file", e.to_string()))?;
         if image.width == 0 || image.height == 0 {
             return Err(self.err("environment.file", format!("image '{}': expected a non-empty image", path.display())));
         }

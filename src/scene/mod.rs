@@ -7,7 +7,6 @@ mod error;
 mod info;
 mod load;
 pub mod mesh_io;
-mod pending;
 pub mod shapes;
 pub mod transform;
 
