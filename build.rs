@@ -12,8 +12,10 @@ const INSTALL_HINT: &str = "install the native dependencies with: \
      sudo apt-get install -y libembree-dev libopenimageio-dev libclang-dev";
 
 fn fail(what: &str) -> ! {
-    // A panic in a build script prints its message; the hint is what a new user needs.
-    panic!("\n\nplexus build: {what}\n{INSTALL_HINT}\n\n");
+    // Cargo shows a failed build script's stderr; the hint is what a new user needs (a panic
+    // would add a backtrace that says nothing useful).
+    eprintln!("\n\nplexus build: {what}\n{INSTALL_HINT}\n");
+    std::process::exit(1);
 }
 
 /// Include directories and library directories that pkg-config reports for `package`, or None if
@@ -42,12 +44,31 @@ fn find_header(header: &str, extra: &[PathBuf]) -> Option<PathBuf> {
     extra.iter().chain(system.iter()).find(|dir| dir.join(header).is_file()).cloned()
 }
 
+/// Whether a shared library `lib{name}.so` is in `extra` or one of the usual library directories
+/// (including Debian's multiarch ones and `LIBRARY_PATH`).
+fn find_library(name: &str, extra: &[PathBuf]) -> bool {
+    let file = format!("lib{name}.so");
+    let mut dirs: Vec<PathBuf> = extra.to_vec();
+    if let Some(paths) = env::var_os("LIBRARY_PATH") {
+        dirs.extend(env::split_paths(&paths));
+    }
+    for root in ["/usr/lib", "/usr/local/lib", "/lib", "/usr/lib64"] {
+        dirs.push(PathBuf::from(root));
+        // Multiarch subdirectories such as /usr/lib/x86_64-linux-gnu.
+        if let Ok(entries) = std::fs::read_dir(root) {
+            dirs.extend(entries.flatten().map(|e| e.path()).filter(|p| p.to_string_lossy().contains("-linux-")));
+        }
+    }
+    dirs.iter().any(|dir| dir.join(&file).exists())
+}
+
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=ffi/embree.h");
     println!("cargo:rerun-if-changed=ffi/oiio_shim.h");
     println!("cargo:rerun-if-changed=ffi/oiio_shim.cpp");
     println!("cargo:rerun-if-env-changed=EMBREE_DIR");
+    println!("cargo:rerun-if-env-changed=LIBRARY_PATH");
 
     let out_dir = PathBuf::from(env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
 
@@ -61,10 +82,16 @@ fn main() {
     let Some(embree_include) = find_header("embree3/rtcore.h", &embree_includes) else {
         fail("the Embree 3 header <embree3/rtcore.h> was not found (package libembree-dev)");
     };
+    let embree_libdirs: Vec<PathBuf> = embree_dir.iter().map(|d| d.join("lib")).collect();
+    if !find_library("embree3", &embree_libdirs) {
+        fail("the Embree 3 library libembree3.so was not found (package libembree-dev)");
+    }
     println!("cargo:rustc-link-lib=dylib=embree3");
 
     // bindgen loads libclang at run time and panics if it cannot; turn that into the same hint.
     let header = Path::new("ffi/embree.h");
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
     let generated = std::panic::catch_unwind(|| {
         bindgen::Builder::default()
             .header(header.to_string_lossy())
@@ -78,6 +105,7 @@ fn main() {
             .layout_tests(false)
             .generate()
     });
+    std::panic::set_hook(default_hook);
     let bindings = match generated {
         Ok(Ok(b)) => b,
         Ok(Err(e)) => fail(&format!("bindgen could not process ffi/embree.h: {e}")),
@@ -91,6 +119,11 @@ fn main() {
     let (oiio_includes, oiio_libdirs) = pkg_config("OpenImageIO").unwrap_or_default();
     if find_header("OpenImageIO/imageio.h", &oiio_includes).is_none() {
         fail("the OpenImageIO header <OpenImageIO/imageio.h> was not found (package libopenimageio-dev)");
+    }
+    for lib in ["OpenImageIO", "OpenImageIO_Util"] {
+        if !find_library(lib, &oiio_libdirs) {
+            fail(&format!("the library lib{lib}.so was not found (package libopenimageio-dev)"));
+        }
     }
     for dir in &oiio_libdirs {
         println!("cargo:rustc-link-search=native={}", dir.display());
