@@ -7,6 +7,7 @@
 //! `stats` and `metrics` measure.
 
 pub mod accel;
+pub mod bench;
 pub mod camera;
 pub mod film;
 pub mod geometry;
