@@ -180,14 +180,6 @@ const VIRIDIS_STOPS: [[u8; 3]; 10] = [
     [0xfd, 0xe7, 0x25],
 ];
 
-fn srgb_to_linear(v: f32) -> f32 {
-    if v <= 0.04045 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
-}
-
 /// The colour map at `t` in [0, 1] (clamped), as linear RGB: interpolated between the stops in sRGB
 /// (where they were designed to be even) and then linearised, because images leave plexus through
 /// a writer that sRGB-encodes linear values for 8-bit formats.
@@ -199,7 +191,7 @@ pub fn colour_map(t: f64) -> Rgb {
     let (s0, s1) = (VIRIDIS_STOPS[i], VIRIDIS_STOPS[i + 1]);
     let c = |k: usize| {
         let v = (s0[k] as f32 * (1.0 - f) + s1[k] as f32 * f) / 255.0;
-        srgb_to_linear(v)
+        crate::film::tonemap::srgb_eotf(v)
     };
     Vec3::new(c(0), c(1), c(2))
 }
@@ -231,9 +223,9 @@ mod tests {
     fn colour_map_ends_are_the_viridis_ends_and_lightness_increases() {
         let lum = |c: Rgb| crate::spectrum::luminance(c);
         let lo = colour_map(0.0);
-        assert!((lo.x - srgb_to_linear(0x44 as f32 / 255.0)).abs() < 1e-6);
+        assert!((lo.x - crate::film::tonemap::srgb_eotf(0x44 as f32 / 255.0)).abs() < 1e-6);
         let hi = colour_map(1.0);
-        assert!((hi.z - srgb_to_linear(0x25 as f32 / 255.0)).abs() < 1e-6);
+        assert!((hi.z - crate::film::tonemap::srgb_eotf(0x25 as f32 / 255.0)).abs() < 1e-6);
         let mut prev = -1.0;
         for i in 0..=100 {
             let l = lum(colour_map(i as f64 / 100.0));

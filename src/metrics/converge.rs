@@ -11,6 +11,7 @@ use std::time::Instant;
 
 use thiserror::Error;
 
+use crate::camera::Camera;
 use crate::film::Image;
 use crate::integrator::{Budget, NoProgress, RenderError, RenderJob};
 use crate::metrics::compare::{compare_images, CompareError};
@@ -85,6 +86,14 @@ pub enum ConvergeError {
          the same scene"
     )]
     ReferenceSize { ref_w: usize, ref_h: usize, scene_w: usize, scene_h: usize },
+    #[error(
+        "resolution {width}x{height} has aspect ratio {:.4} but the scene's camera is {scene_w}x{scene_h} \
+         (aspect {:.4}); expected the same aspect ratio within 1%",
+        *width as f64 / *height as f64, *scene_w as f64 / *scene_h as f64
+    )]
+    AspectRatio { width: u32, height: u32, scene_w: u32, scene_h: u32 },
+    #[error("resolution must be at least 1x1, got {width}x{height}")]
+    BadResolution { width: u32, height: u32 },
     #[error("comparing against the reference: {0}")]
     Compare(#[from] CompareError),
     #[error("writing {path}: {source}")]
@@ -112,6 +121,34 @@ impl StudyConfig {
     /// Number of renders the study performs.
     pub fn run_count(&self) -> usize {
         self.integrators.len() * self.budgets.len() * self.seeds as usize
+    }
+}
+
+/// The same camera with a `width`×`height` film: references and studies may run below a scene's
+/// resolution to fit a time budget. The aspect ratio must match within 1% so that the field of
+/// view (vertical, fixed) frames the same picture.
+pub fn camera_at_resolution(camera: &Camera, width: u32, height: u32) -> Result<Camera, ConvergeError> {
+    if width == 0 || height == 0 {
+        return Err(ConvergeError::BadResolution { width, height });
+    }
+    let (scene_w, scene_h) = (camera.width, camera.height);
+    let want = scene_w as f64 / scene_h as f64;
+    let got = width as f64 / height as f64;
+    if ((got - want) / want).abs() > 0.01 {
+        return Err(ConvergeError::AspectRatio { width, height, scene_w, scene_h });
+    }
+    Ok(Camera::new(camera.position, camera.position + camera.forward, camera.up, camera.fov_y_degrees, width, height))
+}
+
+/// Parses `WxH` (e.g. `128x128`).
+pub fn parse_resolution(text: &str) -> Result<(u32, u32), String> {
+    let parse = |s: &str| s.trim().parse::<u32>().ok().filter(|&v| v > 0);
+    match text.split_once(['x', 'X']) {
+        Some((w, h)) => match (parse(w), parse(h)) {
+            (Some(w), Some(h)) => Ok((w, h)),
+            _ => Err(format!("resolution '{text}': expected WIDTHxHEIGHT with positive integers, e.g. 128x128")),
+        },
+        None => Err(format!("resolution '{text}': expected WIDTHxHEIGHT, e.g. 128x128")),
     }
 }
 
@@ -346,6 +383,7 @@ pub fn markdown_tables(summaries: &[CellSummary], epsilon: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     fn rec(integrator: &str, seed: u64, budget: f64, mse: f64) -> RunRecord {
         RunRecord {
@@ -359,6 +397,21 @@ mod tests {
             relmse: 2.0 * mse,
             nonfinite_dropped: 0,
         }
+    }
+
+    #[test]
+    fn resolution_override_keeps_the_view() {
+        let c = Camera::new(Vec3::new(0.0, 1.0, 5.0), Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 40.0, 256, 256);
+        let small = camera_at_resolution(&c, 64, 64).expect("same aspect");
+        assert_eq!((small.width, small.height), (64, 64));
+        assert!((small.forward - c.forward).length() < 1e-6 && (small.up - c.up).length() < 1e-6);
+        assert_eq!(small.tan_half_fov, c.tan_half_fov);
+        assert!(camera_at_resolution(&c, 64, 32).is_err());
+        assert!(camera_at_resolution(&c, 0, 0).is_err());
+        assert_eq!(parse_resolution("128x96"), Ok((128, 96)));
+        assert!(
+            parse_resolution("128").is_err() && parse_resolution("0x5").is_err() && parse_resolution("ax5").is_err()
+        );
     }
 
     #[test]

@@ -1,0 +1,152 @@
+//! `plexus converge SCENE --reference REF.exr --integrators pt,... --times 5,10 --seeds N`: the
+//! speed/accuracy trade of every named integrator on one scene (see `plexus::metrics::converge`).
+//! The scene is rendered at the reference's resolution (same aspect ratio as the scene's camera),
+//! so a small reference makes a fast study. Writes `<stem>-converge.csv`, `<stem>-converge.md` and `<stem>-converge.png` into `--out-dir`.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use plexus::accel::AccelKind;
+use plexus::film::exr_io::read_exr;
+use plexus::integrator::{self, INTEGRATOR_NAMES};
+use plexus::metrics::compare::DEFAULT_EPSILON;
+use plexus::metrics::converge::{
+    camera_at_resolution, markdown_tables, run_study, summarize, write_csv, ConvergeError, StudyConfig,
+};
+use plexus::metrics::plot::plot_convergence;
+use plexus::scene::load_scene;
+
+use super::bad_input;
+
+#[derive(Debug, Args)]
+pub struct ConvergeArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Reference image (EXR) of the same scene and resolution; see docs/reference-images.md.
+    #[arg(long, value_name = "REF.exr")]
+    pub reference: PathBuf,
+    /// Integrators to compare, comma-separated.
+    #[arg(long, value_delimiter = ',', required = true, value_name = "NAMES",
+          help = format!("Integrators to compare, comma-separated: {}", INTEGRATOR_NAMES.join(", ")))]
+    pub integrators: Vec<String>,
+    /// Wall-clock budgets in seconds, comma-separated.
+    #[arg(long, value_delimiter = ',', required = true, value_name = "SECONDS")]
+    pub times: Vec<f64>,
+    /// Number of seeds per integrator and budget (seeds first-seed .. first-seed + N).
+    #[arg(long, value_name = "N", default_value_t = 3)]
+    pub seeds: u64,
+    /// First seed. Keep the range apart from the reference's seed.
+    #[arg(long, value_name = "S", default_value_t = 0)]
+    pub first_seed: u64,
+    /// Directory for the CSV, Markdown table and plot (must exist).
+    #[arg(long, value_name = "DIR", default_value = ".")]
+    pub out_dir: PathBuf,
+    /// Worker threads (default: the scene's setting, else all cores).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// Ray-query accelerator: embree or bvh.
+    #[arg(long, value_name = "embree|bvh")]
+    pub accel: Option<AccelKind>,
+    /// Integrator setting applied to every integrator (e.g. --set max_depth=8); repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// ε of the relative MSE (a−b)²/(b²+ε).
+    #[arg(long, value_name = "E", default_value_t = DEFAULT_EPSILON)]
+    pub epsilon: f64,
+}
+
+pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
+    let overrides =
+        args.set.iter().map(|s| integrator::parse_set(s)).collect::<Result<Vec<_>, _>>().map_err(bad_input)?;
+    if args.threads == Some(0) {
+        return Err(bad_input("--threads must be at least 1"));
+    }
+    if !(args.epsilon > 0.0 && args.epsilon.is_finite()) {
+        return Err(bad_input(format!("--epsilon must be positive, got {}", args.epsilon)));
+    }
+    if !args.out_dir.is_dir() {
+        return Err(bad_input(format!("--out-dir '{}' is not an existing directory", args.out_dir.display())));
+    }
+    let reference = read_exr(&args.reference).map_err(bad_input)?;
+    let mut loaded = load_scene(&args.scene, args.accel)?;
+    let (ref_w, ref_h) = (reference.width as u32, reference.height as u32);
+    let cam = &loaded.scene.camera;
+    if (cam.width, cam.height) != (ref_w, ref_h) {
+        eprintln!(
+            "note: rendering at the reference's {ref_w}x{ref_h} instead of the scene's {}x{}",
+            cam.width, cam.height
+        );
+        loaded.scene.camera = camera_at_resolution(cam, ref_w, ref_h).map_err(bad_input)?;
+    }
+    let threads = args
+        .threads
+        .or(loaded.render.threads)
+        .filter(|&n| n > 0)
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let config = StudyConfig {
+        integrators: args.integrators.iter().map(|s| s.trim().to_string()).collect(),
+        budgets: args.times.clone(),
+        first_seed: args.first_seed,
+        seeds: args.seeds,
+        threads,
+        epsilon: args.epsilon,
+    };
+    config.validate().map_err(bad_input)?;
+    // The scene's [integrator] table configures the scene's own integrator; the others start from
+    // their defaults. --set applies to all of them.
+    let render = &loaded.render;
+    let params = |name: &str| {
+        let base = if name == render.integrator { render.integrator_params.clone() } else { toml::Table::new() };
+        integrator::merge_params(&base, &overrides)
+    };
+    let stem = args.scene.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
+    let csv = args.out_dir.join(format!("{stem}-converge.csv"));
+    let md = args.out_dir.join(format!("{stem}-converge.md"));
+    let png = args.out_dir.join(format!("{stem}-converge.png"));
+
+    let total_time: f64 = config.budgets.iter().sum::<f64>() * (config.seeds * config.integrators.len() as u64) as f64;
+    eprintln!(
+        "converge {}: {} renders ({} integrators x {} budgets x {} seeds), about {:.0} s of rendering, {} threads",
+        args.scene.display(),
+        config.run_count(),
+        config.integrators.len(),
+        config.budgets.len(),
+        config.seeds,
+        total_time,
+        threads
+    );
+    let records = run_study(&loaded.scene, &reference, &config, &params, &mut |i, n, r| {
+        let dropped = if r.nonfinite_dropped > 0 {
+            format!(", {} non-finite dropped", r.nonfinite_dropped)
+        } else {
+            String::new()
+        };
+        eprintln!(
+            "[{i}/{n}] {} seed {} budget {} s: {:.2} s, {} samples, {:.3e} rays, MSE {:.4e}, relMSE {:.4e}{dropped}",
+            r.integrator, r.seed, r.budget, r.wall_time, r.samples_or_mutations, r.rays, r.mse, r.relmse
+        );
+    })
+    .map_err(|e| match e {
+        ConvergeError::Integrator { .. } | ConvergeError::ReferenceSize { .. } => bad_input(e),
+        other => anyhow::Error::new(other),
+    })?;
+    write_csv(&records, &csv)?;
+    let summaries = summarize(&records);
+    let command: Vec<String> = std::env::args().collect();
+    let mut text = format!(
+        "# Convergence: {}\n\nReference: `{}`. Seeds {}..{} ({} per cell), {} threads. Command:\n\n```\n{}\n```\n\n",
+        args.scene.display(),
+        args.reference.display(),
+        config.first_seed,
+        config.first_seed + config.seeds - 1,
+        config.seeds,
+        threads,
+        command.join(" ")
+    );
+    text.push_str(&markdown_tables(&summaries, config.epsilon));
+    std::fs::write(&md, text).map_err(|e| anyhow::anyhow!("writing {}: {e}", md.display()))?;
+    plot_convergence(&png, &summaries, &format!("{stem}: error vs wall time"))?;
+    eprintln!("-> {}, {}, {}", csv.display(), md.display(), png.display());
+    Ok(())
+}

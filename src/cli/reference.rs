@@ -1,0 +1,122 @@
+//! `plexus reference SCENE --out REF.exr`: a long, seeded render to measure other renders against
+//! (docs/reference-images.md). It differs from `plexus render` in one way: `--resolution WxH` renders
+//! below the scene's resolution (same aspect ratio), so references for studies stay small and
+//! affordable. Next to the EXR it writes the usual JSON stats, which record how it was made.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+
+use plexus::accel::AccelKind;
+use plexus::film::oiio::{check_output_path, write_image, WriteOptions};
+use plexus::integrator::{self, Budget, RenderJob, INTEGRATOR_NAMES};
+use plexus::metrics::converge::{camera_at_resolution, parse_resolution};
+use plexus::scene::load_scene;
+
+use super::bad_input;
+use super::progress::{bar_wanted, BarProgress};
+use super::stats_json::{self, RenderStats};
+
+#[derive(Debug, Args)]
+pub struct ReferenceArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Output image (EXR recommended: references must stay linear and unclipped).
+    #[arg(long = "out", short = 'o', value_name = "PATH")]
+    pub out: PathBuf,
+    /// Integrator (default pt: the simplest unbiased estimator is the safest reference).
+    #[arg(long, value_name = "NAME", default_value = "pt",
+          help = format!("Integrator: {} [default: pt]", INTEGRATOR_NAMES.join(", ")))]
+    pub integrator: String,
+    /// Samples per pixel.
+    #[arg(long, value_name = "N", conflicts_with = "time", required_unless_present = "time")]
+    pub spp: Option<u64>,
+    /// Time budget in seconds instead of samples (not reproducible bit for bit).
+    #[arg(long, value_name = "SECONDS")]
+    pub time: Option<f64>,
+    /// Seed. Use one that studies do not use (they default to seeds 0, 1, 2, ...).
+    #[arg(long, value_name = "S", default_value_t = 1_000_003)]
+    pub seed: u64,
+    /// Film resolution WIDTHxHEIGHT (default: the scene's); must keep the scene's aspect ratio.
+    #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
+    pub resolution: Option<(u32, u32)>,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// Ray-query accelerator: embree or bvh.
+    #[arg(long, value_name = "embree|bvh")]
+    pub accel: Option<AccelKind>,
+    /// Integrator setting (e.g. --set max_depth=64); repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+}
+
+pub fn run_reference(args: &ReferenceArgs) -> anyhow::Result<()> {
+    let overrides =
+        args.set.iter().map(|s| integrator::parse_set(s)).collect::<Result<Vec<_>, _>>().map_err(bad_input)?;
+    let budget = match (args.spp, args.time) {
+        (Some(0), _) => return Err(bad_input("--spp must be at least 1")),
+        (Some(n), _) => Budget::SamplesPerPixel(n),
+        (None, Some(s)) if s.is_finite() && s > 0.0 => Budget::Seconds(s),
+        (None, Some(s)) => return Err(bad_input(format!("--time must be a positive number of seconds, got {s}"))),
+        (None, None) => return Err(bad_input("give --spp N or --time SECONDS")),
+    };
+    if args.threads == Some(0) {
+        return Err(bad_input("--threads must be at least 1"));
+    }
+    check_output_path(&args.out).map_err(bad_input)?;
+    let load_start = Instant::now();
+    let mut loaded = load_scene(&args.scene, args.accel)?;
+    if let Some((w, h)) = args.resolution {
+        loaded.scene.camera = camera_at_resolution(&loaded.scene.camera, w, h).map_err(bad_input)?;
+    }
+    let render = &loaded.render;
+    let base = if args.integrator == render.integrator { render.integrator_params.clone() } else { toml::Table::new() };
+    let integ = integrator::create(&args.integrator, &integrator::merge_params(&base, &overrides))?;
+    let threads = args.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let load_time = load_start.elapsed().as_secs_f64();
+
+    let job = RenderJob { budget, seed: args.seed, threads };
+    let progress = BarProgress::new(
+        match budget {
+            Budget::Seconds(s) => Some(s),
+            Budget::SamplesPerPixel(_) => None,
+        },
+        bar_wanted(),
+    );
+    let output = integ.render(&loaded.scene, &job, &progress);
+    progress.finish();
+    let output = output?;
+    if !output.image.all_finite() {
+        anyhow::bail!("the reference has non-finite pixels; not writing {}", args.out.display());
+    }
+    write_image(&args.out, &output.image, &WriteOptions::default())?;
+    let stats = RenderStats::new(
+        args.scene.display().to_string(),
+        integ.name().to_string(),
+        integ.settings_json(),
+        budget,
+        args.seed,
+        threads,
+        loaded.scene.accel.kind().to_string(),
+        load_time,
+        loaded.scene.features(),
+        &output,
+        vec![args.out.clone()],
+    );
+    let stats_files = stats_json::stats_paths(std::slice::from_ref(&args.out));
+    for path in &stats_files {
+        stats_json::write(path, &stats)?;
+    }
+    eprintln!(
+        "reference {}x{}: {} samples in {:.1} s, {} non-finite contributions dropped -> {}",
+        output.image.width,
+        output.image.height,
+        output.counters.samples,
+        output.wall_time.as_secs_f64(),
+        output.counters.nonfinite_dropped,
+        args.out.display()
+    );
+    Ok(())
+}
