@@ -123,8 +123,7 @@ pub fn generate_camera_subpath<S: PathSampler>(
     if max_vertices == 1 {
         return raster;
     }
-    let (_, pdf_dir) = camera.pdf_we(ray.d);
-    random_walk(ctx, ray, sampler, Rgb::ONE, pdf_dir, max_vertices - 1, TransportMode::Radiance, path, counters);
+    random_walk(ctx, ray, sampler, Rgb::ONE, max_vertices - 1, TransportMode::Radiance, path, counters);
     raster
 }
 
@@ -174,7 +173,7 @@ pub fn generate_light_subpath<S: PathSampler>(
     } else {
         crate::geometry::spawn_ray(es.p, path[0].p_error, es.n, es.dir)
     };
-    random_walk(ctx, ray, sampler, beta, es.pdf_dir, max_vertices - 1, TransportMode::Importance, path, counters);
+    random_walk(ctx, ray, sampler, beta, max_vertices - 1, TransportMode::Importance, path, counters);
     if path.len() > 1 {
         let (v0, rest) = path.split_first_mut().expect("path has two vertices");
         let v1 = &mut rest[0];
@@ -186,17 +185,39 @@ pub fn generate_light_subpath<S: PathSampler>(
     true
 }
 
+/// Appends `v` (reached from the path's last vertex) and records the densities that involve it:
+/// its forward density from the previous vertex and the reverse density of the vertex before that.
+/// Both are computed by `Vertex::pdf` from the vertex positions, not from the sampled direction,
+/// so that they are the same function of the path as when `path::split_path` rebuilds any other
+/// technique's subpaths: the MIS weights of all techniques then sum to one up to rounding even for
+/// vertices a fraction of a millimetre apart, where a ray's offset origin bends the direction
+/// between the hit points away from the sampled one. A delta vertex has no density either way.
+fn push_with_densities(scene: &crate::scene::Scene, path: &mut Vec<Vertex>, mut v: Vertex) {
+    let k = path.len();
+    let prev = path[k - 1];
+    v.pdf_fwd = if prev.delta {
+        0.0
+    } else if k >= 2 {
+        prev.pdf(scene, Some(&path[k - 2]), &v)
+    } else {
+        prev.pdf(scene, None, &v)
+    };
+    if k >= 2 {
+        path[k - 2].pdf_rev = if prev.delta { 0.0 } else { prev.pdf(scene, Some(&v), &path[k - 2]) };
+    }
+    path.push(v);
+}
+
 /// Extends `path` by following `ray` from its last vertex, scattering at each hit with uniforms
 /// from `sampler` (one `BOUNCE_DIMS` block per surface vertex that is extended), until
 /// `max_new` vertices have been added, the ray escapes, a BSDF sample fails or Russian roulette
-/// stops it. `pdf_dir` is the solid-angle density with which `ray.d` was drawn.
+/// stops it.
 #[allow(clippy::too_many_arguments)]
 fn random_walk<S: PathSampler>(
     ctx: &BdptContext,
     mut ray: crate::geometry::Ray,
     sampler: &mut S,
     mut beta: Rgb,
-    mut pdf_dir: f32,
     max_new: usize,
     mode: TransportMode,
     path: &mut Vec<Vertex>,
@@ -211,15 +232,12 @@ fn random_walk<S: PathSampler>(
             // Camera rays that escape meet the environment (if any) as a vertex at infinity; light
             // rays that escape carry nothing further.
             if mode == TransportMode::Radiance && scene.environment.is_some() {
-                let v = Vertex::escaped(scene.environment, ray.d, beta, pdf_dir);
-                path.push(v);
+                push_with_densities(scene, path, Vertex::escaped(scene.environment, ray.d, beta, 0.0));
             }
             return;
         };
-        let prev_index = path.len() - 1;
-        let mut v = Vertex::surface(scene, &si, -ray.d, beta, mode);
-        v.pdf_fwd = path[prev_index].convert_density(pdf_dir, &v);
-        path.push(v);
+        let v = Vertex::surface(scene, &si, -ray.d, beta, mode);
+        push_with_densities(scene, path, v);
         added += 1;
         if added >= max_new {
             return;
@@ -236,21 +254,7 @@ fn random_walk<S: PathSampler>(
         let wi = v.frame.to_world(bs.wi).normalize();
         let cos = bs.wi.z.abs();
         beta *= bs.f * (cos / bs.pdf) * super::vertex::shading_correction(mode, v.wo, wi, v.frame.n, v.ng);
-        let (pdf_fwd, pdf_rev) = if bs.delta {
-            // Delta lobes have no density to compare with: the MIS recurrence skips them (pbrt-v4
-            // Sec. 13.4.4, remap0).
-            (0.0, 0.0)
-        } else {
-            let rev_mode = match mode {
-                TransportMode::Radiance => TransportMode::Importance,
-                TransportMode::Importance => TransportMode::Radiance,
-            };
-            (bs.pdf, material.pdf(bs.wi, wo_l, rev_mode))
-        };
         path[index].delta = bs.delta;
-        let rev = path[index].convert_density(pdf_rev, &path[index - 1]);
-        path[index - 1].pdf_rev = rev;
-        pdf_dir = pdf_fwd;
         // Russian roulette on the throughput relative to the subpath's start, from `rr_depth`
         // bounces on (the survival probability is not part of the MIS densities, as in pbrt).
         if added >= ctx.rr_depth {
