@@ -6,6 +6,7 @@ mod compare;
 mod converge;
 mod info;
 mod progress;
+mod reference;
 mod render;
 mod stats_json;
 
@@ -34,6 +35,8 @@ enum Commands {
     Compare(compare::CompareArgs),
     /// Error against a reference vs render time for several integrators, budgets and seeds.
     Converge(converge::ConvergeArgs),
+    /// Render a reference image (long, seeded, optionally at a reduced resolution).
+    Reference(reference::ReferenceArgs),
     // Further verbs (compare, converge, bench, ...) go here, one variant each, with their
     // argument struct in their own file under src/cli/ and one arm in `run` below.
 }
@@ -54,6 +57,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Commands::Info(args) => info::run(args),
         Commands::Compare(args) => compare::run_compare(&args),
         Commands::Converge(args) => converge::run_converge(&args),
+        Commands::Reference(args) => reference::run_reference(&args),
     }
 }
 
