@@ -33,7 +33,7 @@ pub struct RenderArgs {
     #[arg(long, value_name = "N", conflicts_with = "time")]
     pub spp: Option<u64>,
     /// Time budget in seconds instead of a sample budget.
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     pub time: Option<f64>,
     /// Worker threads (default: the scene's setting, else all cores).
     #[arg(long, value_name = "N")]

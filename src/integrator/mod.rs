@@ -107,8 +107,21 @@ pub fn settings_from_table<T: serde::de::DeserializeOwned>(
     integrator: &str,
     params: &toml::Table,
 ) -> Result<T, RenderError> {
-    T::deserialize(toml::Value::Table(params.clone()))
-        .map_err(|e| RenderError::Settings(format!("[integrator] {integrator}: {}", e.message().trim_end())))
+    T::deserialize(toml::Value::Table(params.clone())).map_err(|e| {
+        let message = e.message().trim_end().replace('`', "'");
+        // serde names unknown keys but not the key holding a value of the wrong type. Settings
+        // structs default every field, so a one-key table fails exactly when that key is the culprit.
+        let culprit = params.iter().find(|(k, v)| {
+            let single: toml::Table = std::iter::once(((*k).clone(), (*v).clone())).collect();
+            T::deserialize(toml::Value::Table(single)).is_err()
+        });
+        match culprit {
+            Some((k, v)) if !message.contains(k.as_str()) => {
+                RenderError::Settings(format!("[integrator] {integrator}: key '{k}' = {v}: {message}"))
+            }
+            _ => RenderError::Settings(format!("[integrator] {integrator}: {message}")),
+        }
+    })
 }
 
 /// Parses one `--set key=value` override. The value is read as a TOML scalar (`16`, `0.5`,

@@ -1,0 +1,315 @@
+//! The `plexus` binary as a user meets it: every bad input of the foundation issue gets one clear
+//! line `error: ...` naming the file/key and what was expected, with exit code 2 (bad input) — never
+//! a panic or a backtrace — and a tiny successful render writes EXR, PNG and the JSON stats.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// A fresh, empty directory for one test.
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("plexus-cli-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create temp dir");
+    dir
+}
+
+fn plexus(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_plexus"))
+        .args(args)
+        .current_dir(cwd)
+        .env("CI", "true")
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .expect("run plexus")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A tiny valid scene: an 8×6 camera looking at a diffuse floor under a one-sided area light.
+/// `{MATERIAL}`, `{EMISSION}`, `{RESOLUTION}` and `{EXTRA}` are substituted by the tests.
+const TEMPLATE: &str = r#"
+[camera]
+position = [0.0, 1.0, -3.0]
+look_at = [0.0, 0.5, 0.0]
+fov = 45.0
+resolution = {RESOLUTION}
+
+[materials.floor]
+{MATERIAL}
+
+[materials.lamp]
+type = "diffuse"
+reflectance = [0.0, 0.0, 0.0]
+
+[[shapes]]
+type = "quad"
+material = "floor"
+transform = { scale = [2.0, 2.0, 1.0], rotate = { axis = [1, 0, 0], angle = -90 } }
+
+[[shapes]]
+type = "quad"
+material = "lamp"
+emission = { radiance = {EMISSION} }
+transform = { scale = [0.5, 0.5, 1.0], rotate = { axis = [1, 0, 0], angle = 90 }, translate = [0.0, 2.0, 0.0] }
+{EXTRA}
+"#;
+
+fn scene_text(material: &str, emission: &str, resolution: &str, extra: &str) -> String {
+    TEMPLATE
+        .replace("{MATERIAL}", material)
+        .replace("{EMISSION}", emission)
+        .replace("{RESOLUTION}", resolution)
+        .replace("{EXTRA}", extra)
+}
+
+fn good_scene() -> String {
+    scene_text("type = \"diffuse\"\nreflectance = [0.5, 0.5, 0.5]", "[4.0, 4.0, 4.0]", "[8, 6]", "")
+}
+
+/// Writes `text` as `name` in `dir` and returns its path as a string.
+fn write(dir: &Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).expect("write test file");
+    p.to_string_lossy().into_owned()
+}
+
+/// Asserts a failure with `code`, exactly one line on stderr starting with `error: `, containing
+/// every one of `needles`, and no trace of a panic.
+fn assert_error(o: &Output, code: i32, needles: &[&str]) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(code), "exit code; stderr: {err}");
+    assert!(!err.contains("panicked") && !err.contains("RUST_BACKTRACE") && !err.contains("internal error"), "{err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "one line expected, got: {err}");
+    assert!(lines[0].starts_with("error: "), "{err}");
+    for n in needles {
+        assert!(lines[0].contains(n), "expected '{n}' in: {err}");
+    }
+}
+
+/// Renders `scene` (a file in `dir`) with extra arguments, expecting bad input.
+fn render_fails(dir: &Path, scene: &str, args: &[&str], needles: &[&str]) {
+    let mut all = vec!["render", scene];
+    all.extend_from_slice(args);
+    let o = plexus(&all, dir);
+    assert_error(&o, 2, needles);
+}
+
+#[test]
+fn malformed_toml_names_file_and_line() {
+    let dir = temp_dir("malformed");
+    let scene = write(&dir, "bad.toml", "[camera\nposition = [0, 0, 0]\n");
+    render_fails(&dir, &scene, &[], &["bad.toml", "line 1"]);
+}
+
+#[test]
+fn unknown_key_names_key_and_expected_keys() {
+    let dir = temp_dir("unknown-key");
+    let text = good_scene().replace("fov = 45.0", "fov = 45.0\nfocal_length = 3.0");
+    let scene = write(&dir, "s.toml", &text);
+    render_fails(&dir, &scene, &[], &["s.toml", "focal_length", "fov"]);
+}
+
+#[test]
+fn missing_mesh_file_names_the_mesh() {
+    let dir = temp_dir("missing-mesh");
+    let text = format!("{}\n[[shapes]]\ntype = \"obj\"\nfile = \"nowhere.obj\"\nmaterial = \"floor\"\n", good_scene());
+    let scene = write(&dir, "s.toml", &text);
+    render_fails(&dir, &scene, &[], &["s.toml", "shapes[2].file", "nowhere.obj"]);
+}
+
+#[test]
+fn nan_vertex_is_rejected() {
+    let dir = temp_dir("nan-vertex");
+    write(&dir, "nan.obj", "v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n");
+    let text = format!("{}\n[[shapes]]\ntype = \"obj\"\nfile = \"nan.obj\"\nmaterial = \"floor\"\n", good_scene());
+    let scene = write(&dir, "s.toml", &text);
+    render_fails(&dir, &scene, &[], &["s.toml", "nan.obj", "finite"]);
+}
+
+#[test]
+fn out_of_range_index_is_rejected() {
+    let dir = temp_dir("bad-index");
+    // PLY, because OBJ readers resolve indices themselves; a face refers to vertex 7 of 3.
+    let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+               element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n";
+    write(&dir, "idx.ply", ply);
+    let text = format!("{}\n[[shapes]]\ntype = \"ply\"\nfile = \"idx.ply\"\nmaterial = \"floor\"\n", good_scene());
+    let scene = write(&dir, "s.toml", &text);
+    render_fails(&dir, &scene, &[], &["s.toml", "idx.ply", "7"]);
+}
+
+#[test]
+fn non_positive_resolution_is_rejected() {
+    let dir = temp_dir("resolution");
+    for res in ["[0, 6]", "[8, -2]"] {
+        let text = scene_text("type = \"diffuse\"\nreflectance = 0.5", "[1.0, 1.0, 1.0]", res, "");
+        let scene = write(&dir, "s.toml", &text);
+        render_fails(&dir, &scene, &[], &["s.toml", "camera.resolution", "positive"]);
+    }
+}
+
+#[test]
+fn negative_roughness_is_rejected() {
+    let dir = temp_dir("roughness");
+    let text =
+        scene_text("type = \"conductor\"\nroughness = -0.1\ncolour = [0.9, 0.6, 0.3]", "[1.0, 1.0, 1.0]", "[8, 6]", "");
+    let scene = write(&dir, "s.toml", &text);
+    render_fails(&dir, &scene, &[], &["s.toml", "materials.floor.roughness", "-0.1"]);
+}
+
+#[test]
+fn negative_radiance_is_rejected() {
+    let dir = temp_dir("radiance");
+    let text = scene_text("type = \"diffuse\"\nreflectance = 0.5", "[1.0, -2.0, 1.0]", "[8, 6]", "");
+    let scene = write(&dir, "s.toml", &text);
+    render_fails(&dir, &scene, &[], &["s.toml", "shapes[1].emission.radiance", "-2"]);
+}
+
+#[test]
+fn unknown_integrator_lists_the_valid_ones() {
+    let dir = temp_dir("integrator");
+    let scene = write(&dir, "s.toml", &good_scene());
+    render_fails(&dir, &scene, &["--integrator", "magic"], &["unknown integrator 'magic'", "pt"]);
+    let in_file = write(&dir, "t.toml", &format!("{}\n[integrator]\ntype = \"magic\"\n", good_scene()));
+    render_fails(&dir, &in_file, &[], &["unknown integrator 'magic'", "pt"]);
+}
+
+#[test]
+fn unknown_or_ill_typed_setting_is_rejected() {
+    let dir = temp_dir("settings");
+    let scene = write(&dir, "s.toml", &good_scene());
+    render_fails(&dir, &scene, &["--set", "max_dept=3"], &["max_dept", "max_depth"]);
+    render_fails(&dir, &scene, &["--set", "max_depth=lots"], &["max_depth"]);
+    render_fails(&dir, &scene, &["--set", "nonsense"], &["key=value"]);
+    let in_file = write(&dir, "t.toml", &format!("{}\n[integrator]\ntype = \"pt\"\nrr = 2\n", good_scene()));
+    render_fails(&dir, &in_file, &[], &["rr", "rr_depth"]);
+}
+
+#[test]
+fn output_in_missing_directory_is_rejected_before_rendering() {
+    let dir = temp_dir("missing-dir");
+    let scene = write(&dir, "s.toml", &good_scene());
+    let out = dir.join("no/such/dir/out.exr");
+    render_fails(&dir, &scene, &["--spp", "1", "--out", &out.to_string_lossy()], &["no/such/dir"]);
+    assert!(!dir.join("no").exists());
+}
+
+#[test]
+fn unwritable_format_is_rejected_before_rendering() {
+    let dir = temp_dir("format");
+    let scene = write(&dir, "s.toml", &good_scene());
+    // A valid first output must not be written either: every path is checked up front.
+    let good = dir.join("first.exr");
+    render_fails(&dir, &scene, &["--out", &good.to_string_lossy(), "--out", "image.notaformat"], &["image.notaformat"]);
+    assert!(!good.exists(), "nothing is written when one output is unusable");
+}
+
+#[test]
+fn bad_arguments_are_usage_errors() {
+    let dir = temp_dir("usage");
+    let scene = write(&dir, "s.toml", &good_scene());
+    for args in [
+        vec!["render", scene.as_str(), "--spp", "4", "--time", "1"],
+        vec!["render", scene.as_str(), "--accel", "octree"],
+        vec!["render", scene.as_str(), "--spp", "many"],
+        vec!["frobnicate"],
+    ] {
+        let o = plexus(&args, &dir);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).starts_with("error: "), "{args:?}: {}", stderr(&o));
+    }
+    render_fails(&dir, &scene, &["--spp", "0"], &["--spp"]);
+    render_fails(&dir, &scene, &["--time", "-1"], &["--time"]);
+    render_fails(&dir, &scene, &["--threads", "0"], &["--threads"]);
+}
+
+#[test]
+fn missing_scene_file_is_bad_input() {
+    let dir = temp_dir("missing-scene");
+    render_fails(&dir, "does-not-exist.toml", &[], &["does-not-exist.toml"]);
+}
+
+#[test]
+fn tiny_render_writes_exr_png_and_json() {
+    let dir = temp_dir("success");
+    let scene = write(&dir, "tiny.toml", &good_scene());
+    let o = plexus(
+        &["render", &scene, "--spp", "4", "--seed", "3", "--threads", "2", "--out", "img.exr", "--out", "img.png"],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    let png = std::fs::read(dir.join("img.png")).expect("png written");
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let exr = exr::prelude::read_first_rgba_layer_from_file(
+        dir.join("img.exr"),
+        |res, _| vec![[0f32; 3]; res.width() * res.height()],
+        |px: &mut Vec<[f32; 3]>, pos, (r, g, b, _a): (f32, f32, f32, f32)| px[pos.y() * 8 + pos.x()] = [r, g, b],
+    )
+    .expect("exr readable");
+    let size = exr.layer_data.size;
+    assert_eq!((size.width(), size.height()), (8, 6));
+    let pixels = &exr.layer_data.channel_data.pixels;
+    assert!(pixels.iter().flatten().all(|v| v.is_finite() && *v >= 0.0));
+    assert!(pixels.iter().flatten().any(|v| *v > 0.0), "the lit floor is visible");
+
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("img.json")).expect("stats written"))
+            .expect("valid JSON");
+    assert_eq!(json["integrator"], "pt");
+    assert_eq!(json["seed"], 3);
+    assert_eq!(json["threads"], 2);
+    assert_eq!(json["accel"], "embree");
+    assert_eq!(json["samples"], 8 * 6 * 4);
+    assert_eq!(json["settings"]["max_depth"], 16);
+    assert!(json["scene"].as_str().is_some_and(|s| s.ends_with("tiny.toml")));
+    assert!(json["rays"].as_u64().is_some_and(|r| r >= 8 * 6 * 4));
+    assert!(json["rays_per_s"].as_f64().is_some_and(|r| r > 0.0));
+    assert!(json["wall_time_s"].as_f64().is_some_and(|t| t > 0.0));
+    assert_eq!(json["counters"]["nonfinite_dropped"], 0);
+    assert_eq!(json["scene_features"]["area_lights"], 1);
+    assert!(json["integrator_stats"].is_object());
+    // No temporary files left behind.
+    let names: Vec<String> = std::fs::read_dir(&dir)
+        .expect("list")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.contains("tmp")), "{names:?}");
+}
+
+#[test]
+fn default_outputs_are_named_after_the_scene() {
+    let dir = temp_dir("defaults");
+    let scene = write(&dir, "little.toml", &good_scene());
+    let o = plexus(&["render", &scene, "--spp", "1", "--time", "0.2"], &dir);
+    assert_eq!(o.status.code(), Some(2), "--spp and --time conflict");
+    let o = plexus(&["render", &scene, "--time", "0.2", "--accel", "bvh"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in ["little.exr", "little.png", "little.json"] {
+        assert!(dir.join(f).is_file(), "{f} written");
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("little.json")).expect("stats")).expect("JSON");
+    assert_eq!(json["accel"], "bvh");
+    assert!(json["budget"]["seconds"].as_f64().is_some_and(|s| (s - 0.2).abs() < 1e-9));
+    assert!(json["samples"].as_u64().is_some_and(|n| n > 0 && n % 48 == 0), "whole passes: {}", json["samples"]);
+}
+
+#[test]
+fn info_prints_the_scene_summary() {
+    let dir = temp_dir("info");
+    let scene = write(&dir, "s.toml", &good_scene());
+    let o = plexus(&["info", &scene], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("triangles") && out.contains('4'), "{out}");
+    let o = plexus(&["info", &scene, "--json"], &dir);
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).expect("info JSON");
+    assert_eq!(json["triangles"], 4);
+    assert_eq!(json["area_lights"], 1);
+    let o = plexus(&["info", "missing.toml"], &dir);
+    assert_error(&o, 2, &["missing.toml"]);
+}
