@@ -73,7 +73,7 @@ pub fn disk(segments: u32) -> RawMesh {
 }
 
 /// A UV sphere with poles on ±z. Vertices lie on the unit sphere; the seam column is duplicated
-/// so texture coordinates stay continuous.
+/// (same positions, u = 1 instead of 0) so texture coordinates stay continuous.
 pub fn sphere(rings: u32) -> RawMesh {
     let segments = 2 * rings;
     let mut positions = Vec::new();
@@ -82,7 +82,9 @@ pub fn sphere(rings: u32) -> RawMesh {
         let theta = PI * r as f32 / rings as f32;
         let (st, ct) = theta.sin_cos();
         for s in 0..=segments {
-            let phi = 2.0 * PI * s as f32 / segments as f32;
+            // The seam column repeats column 0's positions bit for bit (sin 2π is not exactly 0 in
+            // f32), so the mesh stays watertight for watertight ray tests.
+            let phi = 2.0 * PI * (s % segments) as f32 / segments as f32;
             let (sp, cp) = phi.sin_cos();
             // Exact poles, so the top and bottom caps close without slivers.
             let p = if r == 0 {
@@ -156,6 +158,29 @@ mod tests {
             assert!(g.length() > 0.0, "degenerate triangle {t:?}");
             assert!(g.dot(ns[t[0] as usize] + ns[t[1] as usize] + ns[t[2] as usize]) > 0.0);
         }
+    }
+
+    /// Every edge, keyed by its endpoint positions, is used once in each direction: the surface
+    /// is closed and consistently wound, with no cracks at the seam or the poles.
+    fn assert_watertight(m: &RawMesh) {
+        use std::collections::HashMap;
+        let key = |p: Vec3| p.to_array().map(f32::to_bits);
+        let mut edges: HashMap<([u32; 3], [u32; 3]), i32> = HashMap::new();
+        for t in &m.indices {
+            for k in 0..3 {
+                let (a, b) = (key(m.positions[t[k] as usize]), key(m.positions[t[(k + 1) % 3] as usize]));
+                *edges.entry((a, b)).or_default() += 1;
+                *edges.entry((b, a)).or_default() -= 1;
+            }
+        }
+        assert!(edges.values().all(|&c| c == 0), "open or inconsistently wound edges");
+    }
+
+    #[test]
+    fn closed_shapes_are_watertight() {
+        assert_watertight(&cube());
+        assert_watertight(&sphere(2));
+        assert_watertight(&sphere(17));
     }
 
     #[test]
