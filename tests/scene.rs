@@ -464,3 +464,59 @@ fn environment_errors_and_constant_environment() {
         _ => panic!("expected a constant environment"),
     }
 }
+
+/// The TOML blocks of docs/scene-format.md, in order.
+fn doc_blocks() -> Vec<String> {
+    let doc = fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/scene-format.md")).unwrap();
+    let mut blocks = Vec::new();
+    let mut current: Option<String> = None;
+    for line in doc.lines() {
+        match (&mut current, line.trim_end()) {
+            (None, "```toml") => current = Some(String::new()),
+            (Some(b), "```") => {
+                blocks.push(std::mem::take(b));
+                current = None;
+            }
+            (Some(b), l) => {
+                b.push_str(l);
+                b.push('\n');
+            }
+            _ => {}
+        }
+    }
+    blocks
+}
+
+#[test]
+fn documentation_examples_are_valid() {
+    let blocks = doc_blocks();
+    assert!(blocks.len() >= 10, "found {} TOML blocks", blocks.len());
+    // The first block is a complete scene: it must load.
+    let dir = temp_dir("docs");
+    let path = dir.join("doc.toml");
+    fs::write(&path, &blocks[0]).unwrap();
+    let s = load_ok(&path).scene;
+    assert_eq!(s.meshes.len(), 2);
+    assert!(s.features().constant_environment);
+    // Every other block that is a table must at least match the schema (no unknown keys, right
+    // types); blocks of bare `transform = ...` lines are checked inside a shape.
+    let camera = "[camera]\nposition = [0, 0, 1]\nlook_at = [0, 0, 0]\nfov = 40\nresolution = [8, 8]\n";
+    let mut scenes = Vec::new();
+    for b in &blocks[1..] {
+        if b.starts_with("[camera]") {
+            scenes.push(b.clone());
+        } else if b.starts_with('[') {
+            scenes.push(format!("{camera}{b}"));
+        } else {
+            // Bare `transform = ...` lines: one shape each.
+            scenes.extend(b.lines().map(|l| format!("{camera}[[shapes]]\ntype = \"box\"\nmaterial = \"m\"\n{l}\n")));
+        }
+    }
+    for t in &scenes {
+        if let Err(e) = toml::from_str::<plexus::scene::desc::SceneDesc>(t) {
+            panic!("documentation example does not match the schema: {e}\n{t}");
+        }
+    }
+    let checked = scenes.len();
+    assert!(checked >= 12, "{checked}");
+}
