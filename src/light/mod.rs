@@ -1,9 +1,33 @@
 //! Emitters: area emission on meshes, constant and image environments, and light selection.
-//! Each sampling routine has its pdf beside it, with the uniforms it consumes passed explicitly.
+//! Each sampling routine has its pdf and its inverse beside it, with the uniforms it consumes passed
+//! explicitly.
+//!
+//! # Dimension layout
+//! - `sample_li` (`LI_SAMPLE_DIMS` = 3): area light: `u[0]` the triangle (by area, discrete),
+//!   `u[1..3]` the point in it; environment: `u[0]` unused, `u[1..3]` the direction.
+//! - `sample_emission` (`EMISSION_SAMPLE_DIMS` = 5): area light: `u[0..3]` the point as above,
+//!   `u[3..5]` the cosine-weighted direction (two-sided: `u[3]` < ½ front, ≥ ½ back); environment:
+//!   `u[0]` unused, `u[1..3]` the direction towards the environment, `u[3..5]` the ray's origin on
+//!   the disk perpendicular to it.
+//! - light selection (`LightSampler`) takes its own single uniform.
+//!
+//! Inverses take, for each ambiguous dimension (a discrete choice's interval, RJMLT Eq. 40, or an
+//! unused dimension), a fresh uniform `gamma` and return `None` for a point the sampler cannot
+//! produce (off the emitter, behind a one-sided emitter, in a texel of zero density).
+
+mod area;
+mod environment;
+
+pub use area::{
+    invert_emission_direction, invert_mesh_point, invert_triangle_point, pdf_emission_direction, pdf_mesh_point,
+    sample_emission_direction, sample_mesh_point, sample_triangle_point, triangle_barycentrics, triangle_normal,
+    MeshPoint,
+};
+pub use environment::{direction_to_equirect, equirect_to_direction};
 
 use std::sync::Arc;
 
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 
 use crate::geometry::TriangleMesh;
 use crate::sampling::Distribution1D;
@@ -97,39 +121,88 @@ pub struct EmissionSample {
 impl Light {
     /// Samples a direction towards this light from `reference` with uniforms `u`.
     pub fn sample_li(&self, reference: Vec3, u: [f32; LI_SAMPLE_DIMS]) -> Option<LightLiSample> {
-        let _ = (reference, u);
-        todo!("Light::sample_li")
+        match self {
+            Light::Area(l) => l.sample_li(reference, u),
+            Light::ConstantEnvironment(l) => l.sample_li(reference, u),
+            Light::ImageEnvironment(l) => l.sample_li(reference, u),
+        }
     }
     /// Solid-angle density at `reference` of `sample_li` choosing the point `p_light` with normal
     /// `n_light` (area lights). For environments pass the direction as `wi` and ignore p/n.
     pub fn pdf_li(&self, reference: Vec3, wi: Vec3, p_light: Vec3, n_light: Vec3) -> f32 {
-        let _ = (reference, wi, p_light, n_light);
-        todo!("Light::pdf_li")
+        match self {
+            Light::Area(l) => l.pdf_li(reference, wi, p_light, n_light),
+            Light::ConstantEnvironment(l) => l.pdf_direction(wi),
+            Light::ImageEnvironment(l) => l.pdf_direction(wi),
+        }
+    }
+    /// Inverse of `sample_li`: the uniforms that make `sample_li` choose the point `p_light` on
+    /// triangle `prim` (area lights) or the direction `wi` (environments; `prim`/`p_light`
+    /// ignored). `gamma` is a fresh uniform for the ambiguous `u[0]`. `None` when the sampler cannot
+    /// produce that point or direction.
+    pub fn invert_li(&self, wi: Vec3, prim: u32, p_light: Vec3, gamma: f32) -> Option<[f32; LI_SAMPLE_DIMS]> {
+        match self {
+            Light::Area(l) => l.invert_li(prim, p_light, gamma),
+            Light::ConstantEnvironment(l) => l.invert_li(wi, gamma),
+            Light::ImageEnvironment(l) => l.invert_li(wi, gamma),
+        }
     }
     /// Radiance an area light emits from a point with geometric normal `n` in direction `w`.
     pub fn emitted(&self, n: Vec3, w: Vec3) -> Rgb {
-        let _ = (n, w);
-        todo!("Light::emitted")
+        match self {
+            Light::Area(l) => l.emitted(n, w),
+            _ => Rgb::ZERO,
+        }
     }
     /// Radiance an environment sends along `-dir` (i.e. seen when looking in direction `dir`).
     pub fn environment_radiance(&self, dir: Vec3) -> Rgb {
-        let _ = dir;
-        todo!("Light::environment_radiance")
+        match self {
+            Light::Area(_) => Rgb::ZERO,
+            Light::ConstantEnvironment(l) => l.radiance,
+            Light::ImageEnvironment(l) => l.radiance(dir),
+        }
     }
     /// Samples an emitted ray with uniforms `u` (3 for position, 2 for direction).
     pub fn sample_emission(&self, u: [f32; EMISSION_SAMPLE_DIMS]) -> Option<EmissionSample> {
-        let _ = u;
-        todo!("Light::sample_emission")
+        match self {
+            Light::Area(l) => l.sample_emission(u),
+            Light::ConstantEnvironment(l) => l.sample_emission(u),
+            Light::ImageEnvironment(l) => l.sample_emission(u),
+        }
     }
     /// Densities `(pdf_pos, pdf_dir)` of `sample_emission` producing the ray from `p` (normal `n`)
     /// in direction `dir`.
     pub fn pdf_emission(&self, p: Vec3, n: Vec3, dir: Vec3) -> (f32, f32) {
-        let _ = (p, n, dir);
-        todo!("Light::pdf_emission")
+        let _ = p;
+        match self {
+            Light::Area(l) => l.pdf_emission(n, dir),
+            Light::ConstantEnvironment(l) => l.pdf_emission(dir),
+            Light::ImageEnvironment(l) => l.pdf_emission(dir),
+        }
+    }
+    /// Inverse of `sample_emission` for the ray leaving `p` along `dir`: for an area light `p` lies
+    /// on triangle `prim`; for an environment `p` is any point on the ray (e.g. the first surface it
+    /// reaches), projected onto the emission disk, and `prim` is ignored. `gamma` is a fresh uniform
+    /// for the ambiguous `u[0]`.
+    pub fn invert_emission(&self, prim: u32, p: Vec3, dir: Vec3, gamma: f32) -> Option<[f32; EMISSION_SAMPLE_DIMS]> {
+        match self {
+            Light::Area(l) => l.invert_emission(prim, p, dir, gamma),
+            Light::ConstantEnvironment(l) => l.invert_emission(p, dir, gamma),
+            Light::ImageEnvironment(l) => l.invert_emission(p, dir, gamma),
+        }
     }
     /// Total emitted power (luminance-weighted flux), for light selection.
     pub fn power(&self) -> f32 {
-        todo!("Light::power")
+        let p = match self {
+            Light::Area(l) => l.power(),
+            Light::ConstantEnvironment(l) => l.power(),
+            Light::ImageEnvironment(l) => l.power(),
+        };
+        if p.is_finite() {
+            p.max(0.0)
+        } else {
+            0.0
+        }
     }
     pub fn is_environment(&self) -> bool {
         !matches!(self, Light::Area(_))
@@ -142,67 +215,24 @@ pub struct LightSampler {
     pub distribution: Distribution1D,
 }
 
-impl AreaLight {
-    /// An area light over every triangle of `mesh` (the scene's mesh `geom_id`), triangles chosen
-    /// by area.
-    pub fn new(mesh: Arc<TriangleMesh>, geom_id: u32, radiance: Rgb, two_sided: bool) -> AreaLight {
-        let areas: Vec<f32> = (0..mesh.triangle_count() as u32).map(|i| mesh.triangle_area(i)).collect();
-        let area = areas.iter().map(|&a| a as f64).sum::<f64>() as f32;
-        AreaLight { triangles: Distribution1D::new(&areas), mesh, geom_id, radiance, two_sided, area }
-    }
-}
-
-impl ConstantEnvironment {
-    /// A constant environment around a scene bounded by `scene_bounds`.
-    pub fn new(radiance: Rgb, scene_bounds: crate::geometry::Aabb) -> ConstantEnvironment {
-        let (scene_center, scene_radius) = scene_bounds.bounding_sphere();
-        ConstantEnvironment { radiance, scene_center, scene_radius: scene_radius.max(1e-3) }
-    }
-}
-
-impl ImageEnvironment {
-    /// An equirectangular environment of `width`×`height` row-major texels (row 0 at +y), scaled by
-    /// `scale`, with `to_local` the world-to-map rotation. Texels are importance-sampled in
-    /// proportion to luminance × sin θ (the equirectangular map's area distortion).
-    pub fn new(
-        width: usize,
-        height: usize,
-        texels: Vec<Rgb>,
-        scale: f32,
-        to_local: glam::Mat3,
-        scene_bounds: crate::geometry::Aabb,
-    ) -> ImageEnvironment {
-        let mut weights = vec![0.0f32; width * height];
-        for v in 0..height {
-            let sin_theta = (std::f32::consts::PI * (v as f32 + 0.5) / height as f32).sin();
-            for u in 0..width {
-                let t = texels.get(v * width + u).copied().unwrap_or(Rgb::ZERO);
-                weights[v * width + u] = crate::spectrum::luminance(t).max(0.0) * sin_theta;
-            }
-        }
-        let distribution = crate::sampling::Distribution2D::new(&weights, width, height);
-        let (scene_center, scene_radius) = scene_bounds.bounding_sphere();
-        ImageEnvironment {
-            width,
-            height,
-            texels,
-            scale,
-            to_local,
-            distribution,
-            scene_center,
-            scene_radius: scene_radius.max(1e-3),
-        }
-    }
-}
-
 impl LightSampler {
     /// Selection proportional to each light's power; all-zero power gives uniform selection.
     pub fn new(lights: &[Light]) -> LightSampler {
         let power: Vec<f32> = lights.iter().map(|l| l.power()).collect();
         LightSampler { distribution: Distribution1D::new(&power) }
     }
+    /// `(index, pmf, u remapped into [0,1) inside the index's interval)`; pmf 0 when there are no
+    /// lights.
+    pub fn sample(&self, u: f32) -> (usize, f32, f32) {
+        self.distribution.sample_discrete(u)
+    }
+    /// Probability of choosing light `index`.
+    pub fn pmf(&self, index: usize) -> f32 {
+        self.distribution.pdf_discrete(index)
+    }
+    /// Probabilistic inverse of `sample` (RJMLT Eq. 40): a u that selects `index`, uniform in its
+    /// interval as `gamma` is uniform; Jacobian pmf(index). `None` for a light of zero probability.
+    pub fn invert(&self, index: usize, gamma: f32) -> Option<f32> {
+        self.distribution.invert_discrete(index, gamma)
+    }
 }
-
-/// Unused import guard for Vec2 until implementations land.
-#[allow(dead_code)]
-fn _uses(_: Vec2) {}
