@@ -1,5 +1,7 @@
 //! Primary-sample-space Markov chain methods: the shared Kelemen sampler, PSSMLT, MMLT and RJMLT.
 
+pub mod jump;
 pub mod sampler;
+pub mod validation_1d;
 
 pub use sampler::{MutationSettings, PssSampler};
