@@ -66,9 +66,15 @@ pub struct BenchRow {
     pub threads: usize,
     /// Median build time (none for the bare loop, which reuses Embree's scene).
     pub build_seconds: Option<f64>,
-    /// Median million rays per second.
+    /// Median CPU time of the build, all threads together.
+    pub build_cpu_seconds: Option<f64>,
+    /// Median million rays per second of wall-clock time.
     pub camera_mrays_per_s: f64,
     pub bounce_mrays_per_s: f64,
+    /// Median million rays per CPU-second (all threads together): the throughput of one core,
+    /// insensitive to other processes competing for the cores, unlike the wall-clock figures.
+    pub camera_mrays_per_cpu_s: f64,
+    pub bounce_mrays_per_cpu_s: f64,
 }
 
 /// Everything `run` measured.
@@ -84,6 +90,10 @@ pub struct BenchReport {
     pub bvh_bytes: usize,
     pub embree_bytes: usize,
     pub rows: Vec<BenchRow>,
+    /// 1-minute load average (/proc/loadavg) when the benchmark started and ended: other work on
+    /// the machine slows the wall-clock figures, not the per-CPU-second ones.
+    pub load_before: String,
+    pub load_after: String,
 }
 
 impl BenchReport {
@@ -301,14 +311,35 @@ pub fn thread_pool(threads: usize) -> anyhow::Result<ThreadPool> {
 /// to balance two threads.
 const RAY_CHUNK: usize = 1024;
 
-/// Traces every ray with `f` on `pool`; returns the elapsed time and the number of hits (which
-/// also keeps the work from being optimised away).
-fn trace(pool: &ThreadPool, rays: &[Ray], f: &(dyn Fn(&Ray) -> Option<Hit> + Sync)) -> (Duration, usize) {
-    pool.install(|| {
-        let start = Instant::now();
-        let hits = rays.par_chunks(RAY_CHUNK).map(|c| c.iter().filter(|r| f(r).is_some()).count()).sum();
-        (start.elapsed(), hits)
-    })
+/// CPU time consumed so far by every thread of the process.
+pub fn process_cpu_time() -> Duration {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: `clock_gettime` only writes one `timespec` into the valid, exclusively borrowed `ts`.
+    let status = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
+    if status != 0 {
+        return Duration::ZERO;
+    }
+    Duration::new(ts.tv_sec.max(0) as u64, ts.tv_nsec.clamp(0, 999_999_999) as u32)
+}
+
+/// Wall-clock and process CPU time of one run.
+#[derive(Clone, Copy, Debug)]
+struct Timing {
+    wall: Duration,
+    cpu: Duration,
+}
+
+/// Runs `f`, timing it.
+fn timed<T>(f: impl FnOnce() -> T) -> (Timing, T) {
+    let (wall, cpu) = (Instant::now(), process_cpu_time());
+    let value = f();
+    (Timing { wall: wall.elapsed(), cpu: process_cpu_time().saturating_sub(cpu) }, value)
+}
+
+/// Traces every ray with `f` on `pool`; returns the timing and the number of hits (which also
+/// keeps the work from being optimised away).
+fn trace(pool: &ThreadPool, rays: &[Ray], f: &(dyn Fn(&Ray) -> Option<Hit> + Sync)) -> (Timing, usize) {
+    pool.install(|| timed(|| rays.par_chunks(RAY_CHUNK).map(|c| c.iter().filter(|r| f(r).is_some()).count()).sum()))
 }
 
 fn median(mut xs: Vec<f64>) -> f64 {
@@ -323,21 +354,33 @@ fn median(mut xs: Vec<f64>) -> f64 {
     }
 }
 
-/// Median over `reps` runs of `f`'s duration in seconds.
-fn time_median(reps: u32, mut f: impl FnMut() -> Duration) -> f64 {
-    median((0..reps.max(1)).map(|_| f().as_secs_f64()).collect())
+/// Medians over `reps` runs of `f`'s wall-clock and CPU seconds.
+fn time_median(reps: u32, mut f: impl FnMut() -> Timing) -> (f64, f64) {
+    let runs: Vec<Timing> = (0..reps.max(1)).map(|_| f()).collect();
+    (
+        median(runs.iter().map(|t| t.wall.as_secs_f64()).collect()),
+        median(runs.iter().map(|t| t.cpu.as_secs_f64()).collect()),
+    )
 }
 
-/// Median million rays per second of tracing `rays` with `f`, checking every repetition finds the
-/// same number of hits.
-fn mrays(pool: &ThreadPool, reps: u32, rays: &[Ray], f: &(dyn Fn(&Ray) -> Option<Hit> + Sync)) -> (f64, usize) {
+/// Median million rays per wall-clock second and per CPU-second of tracing `rays` with `f`, and
+/// the number of hits (the same in every repetition: the rays and the scene are fixed).
+fn mrays(
+    pool: &ThreadPool,
+    reps: u32,
+    rays: &[Ray],
+    f: &(dyn Fn(&Ray) -> Option<Hit> + Sync),
+) -> anyhow::Result<(f64, f64, usize)> {
     let (_, hits) = trace(pool, rays, f); // warm-up
-    let secs = time_median(reps, || {
+    let mut consistent = true;
+    let (wall, cpu) = time_median(reps, || {
         let (t, h) = trace(pool, rays, f);
-        debug_assert_eq!(h, hits);
+        consistent &= h == hits;
         t
     });
-    (rays.len() as f64 / secs / 1e6, hits)
+    anyhow::ensure!(consistent, "bench: the same rays found a different number of hits in another repetition");
+    let n = rays.len() as f64;
+    Ok((n / wall / 1e6, n / cpu / 1e6, hits))
 }
 
 /// The CPU model name (Linux), for the report.
@@ -353,11 +396,20 @@ pub fn cpu_model() -> String {
         .unwrap_or_else(|| "unknown CPU".to_string())
 }
 
+/// The 1-minute load average (Linux), for the report.
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().map(str::to_string))
+        .unwrap_or_else(|| "unknown".to_string())
+}
+
 /// Runs the benchmark, printing progress and the final Markdown table to `out`.
 pub fn run(opts: &BenchOptions, out: &mut dyn Write) -> anyhow::Result<BenchReport> {
     anyhow::ensure!(!opts.threads.is_empty(), "bench: no thread counts to measure");
     anyhow::ensure!(opts.threads.iter().all(|&t| t > 0), "bench: thread counts must be at least 1");
     let reps = opts.repetitions.max(1);
+    let load_before = load_average();
     let start = Instant::now();
     let scene = BenchScene::new(opts.triangles, opts.width, opts.height, opts.seed);
     let triangles = scene.triangle_count();
@@ -388,22 +440,14 @@ pub fn run(opts: &BenchOptions, out: &mut dyn Write) -> anyhow::Result<BenchRepo
     for &threads in &opts.threads {
         let pool = thread_pool(threads)?;
 
-        let embree_build = time_median(reps, || {
-            let t = Instant::now();
-            let accel = pool.install(|| EmbreeAccel::build_with_config(&scene.meshes, &format!("threads={threads}")));
-            let elapsed = t.elapsed();
-            drop(accel);
-            elapsed
+        let config = format!("threads={threads}");
+        let (embree_build, embree_build_cpu) = time_median(reps, || {
+            pool.install(|| timed(|| EmbreeAccel::build_with_config(&scene.meshes, &config).map(drop))).0
         });
-        let embree = pool.install(|| EmbreeAccel::build_with_config(&scene.meshes, &format!("threads={threads}")))?;
+        let embree = pool.install(|| EmbreeAccel::build_with_config(&scene.meshes, &config))?;
         embree_bytes = embree.memory_bytes();
-        let bvh_build = time_median(reps, || {
-            let t = Instant::now();
-            let bvh = pool.install(|| Bvh::build(&scene.meshes));
-            let elapsed = t.elapsed();
-            drop(bvh);
-            elapsed
-        });
+        let (bvh_build, bvh_build_cpu) =
+            time_median(reps, || pool.install(|| timed(|| drop(Bvh::build(&scene.meshes)))).0);
         let bvh = pool.install(|| Bvh::build(&scene.meshes));
         bvh_nodes = bvh.node_count();
         bvh_bytes = bvh.memory_bytes();
@@ -412,27 +456,30 @@ pub fn run(opts: &BenchOptions, out: &mut dyn Write) -> anyhow::Result<BenchRepo
         let bvh_dyn: &dyn Accel = &bvh;
         let bare = embree.scene();
         let mut hit_counts = Vec::new();
-        let mut measure = |name: &str, build: Option<f64>, f: &(dyn Fn(&Ray) -> Option<Hit> + Sync)| {
-            let (camera, camera_hits) = mrays(&pool, reps, &camera_rays, f);
-            let (bounce, bounce_hits) = mrays(&pool, reps, &bounce_rays, f);
+        let mut measure = |name: &str,
+                           build: Option<(f64, f64)>,
+                           f: &(dyn Fn(&Ray) -> Option<Hit> + Sync),
+                           out: &mut dyn Write|
+         -> anyhow::Result<BenchRow> {
+            let (camera, camera_cpu, camera_hits) = mrays(&pool, reps, &camera_rays, f)?;
+            let (bounce, bounce_cpu, bounce_hits) = mrays(&pool, reps, &bounce_rays, f)?;
             hit_counts.push((name.to_string(), camera_hits, bounce_hits));
-            BenchRow {
+            let row = BenchRow {
                 accel: name.to_string(),
                 threads,
-                build_seconds: build,
+                build_seconds: build.map(|b| b.0),
+                build_cpu_seconds: build.map(|b| b.1),
                 camera_mrays_per_s: camera,
                 bounce_mrays_per_s: bounce,
-            }
+                camera_mrays_per_cpu_s: camera_cpu,
+                bounce_mrays_per_cpu_s: bounce_cpu,
+            };
+            writeln!(out, "{}", row_line(&row))?;
+            Ok(row)
         };
-        let row = measure("embree", Some(embree_build), &|r| embree_dyn.intersect(r));
-        writeln!(out, "{}", row_line(&row))?;
-        rows.push(row);
-        let row = measure("bvh", Some(bvh_build), &|r| bvh_dyn.intersect(r));
-        writeln!(out, "{}", row_line(&row))?;
-        rows.push(row);
-        let row = measure("embree bare loop", None, &|r| bare.intersect(r));
-        writeln!(out, "{}", row_line(&row))?;
-        rows.push(row);
+        rows.push(measure("embree", Some((embree_build, embree_build_cpu)), &|r| embree_dyn.intersect(r), out)?);
+        rows.push(measure("bvh", Some((bvh_build, bvh_build_cpu)), &|r| bvh_dyn.intersect(r), out)?);
+        rows.push(measure("embree bare loop", None, &|r| bare.intersect(r), out)?);
         for (name, c, b) in &hit_counts {
             writeln!(out, "  {name}: {c} camera hits, {b} bounce hits")?;
         }
@@ -448,6 +495,8 @@ pub fn run(opts: &BenchOptions, out: &mut dyn Write) -> anyhow::Result<BenchRepo
         bvh_bytes,
         embree_bytes,
         rows,
+        load_before,
+        load_after: load_average(),
     };
     writeln!(out)?;
     write!(out, "{}", markdown_table(&report))?;
@@ -456,12 +505,14 @@ pub fn run(opts: &BenchOptions, out: &mut dyn Write) -> anyhow::Result<BenchRepo
 
 fn row_line(r: &BenchRow) -> String {
     format!(
-        "{:>17} {} thread(s): build {}, camera {:.2} Mrays/s, bounce {:.2} Mrays/s",
+        "{:>17} {} thread(s): build {}, camera {:.2} Mrays/s ({:.2} per CPU-s), bounce {:.2} Mrays/s ({:.2} per CPU-s)",
         r.accel,
         r.threads,
         r.build_seconds.map_or("-".to_string(), |s| format!("{s:.3} s")),
         r.camera_mrays_per_s,
-        r.bounce_mrays_per_s
+        r.camera_mrays_per_cpu_s,
+        r.bounce_mrays_per_s,
+        r.bounce_mrays_per_cpu_s
     )
 }
 
@@ -469,29 +520,45 @@ fn row_line(r: &BenchRow) -> String {
 pub fn markdown_table(report: &BenchReport) -> String {
     let mut s = String::new();
     s += &format!(
-        "{} triangles, {} camera rays, {} bounce rays; {}; median of {} runs\n\n",
-        report.triangles, report.camera_rays, report.bounce_rays, report.cpu, report.options.repetitions
+        "{} triangles, {} camera rays, {} bounce rays; {}; median of {} runs; load average {} before, {} after\n\n",
+        report.triangles,
+        report.camera_rays,
+        report.bounce_rays,
+        report.cpu,
+        report.options.repetitions,
+        report.load_before,
+        report.load_after
     );
-    s += "| accelerator | threads | build (s) | camera rays (Mrays/s) | bounce rays (Mrays/s) |\n";
-    s += "| --- | ---: | ---: | ---: | ---: |\n";
+    s += "| accelerator | threads | build s (CPU s) | camera Mrays/s | camera Mrays/CPU-s | bounce Mrays/s | bounce Mrays/CPU-s |\n";
+    s += "| --- | ---: | ---: | ---: | ---: | ---: | ---: |\n";
     for r in &report.rows {
+        let build = match (r.build_seconds, r.build_cpu_seconds) {
+            (Some(b), Some(c)) => format!("{b:.3} ({c:.3})"),
+            _ => "–".to_string(),
+        };
         s += &format!(
-            "| {} | {} | {} | {:.2} | {:.2} |\n",
+            "| {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |\n",
             r.accel,
             r.threads,
-            r.build_seconds.map_or("–".to_string(), |b| format!("{b:.3}")),
+            build,
             r.camera_mrays_per_s,
-            r.bounce_mrays_per_s
+            r.camera_mrays_per_cpu_s,
+            r.bounce_mrays_per_s,
+            r.bounce_mrays_per_cpu_s
         );
     }
     for &t in &report.options.threads {
         if let (Some(b), Some(e)) = (report.row("bvh", t), report.row("embree", t)) {
+            let ratio = |x: Option<f64>, y: Option<f64>| x.zip(y).map_or(f64::NAN, |(x, y)| x / y);
             s += &format!(
-                "| BVH / Embree | {} | {:.2} | {:.2} | {:.2} |\n",
+                "| BVH / Embree | {} | {:.2} ({:.2}) | {:.2} | {:.2} | {:.2} | {:.2} |\n",
                 t,
-                b.build_seconds.unwrap_or(0.0) / e.build_seconds.unwrap_or(f64::NAN),
+                ratio(b.build_seconds, e.build_seconds),
+                ratio(b.build_cpu_seconds, e.build_cpu_seconds),
                 b.camera_mrays_per_s / e.camera_mrays_per_s,
-                b.bounce_mrays_per_s / e.bounce_mrays_per_s
+                b.camera_mrays_per_cpu_s / e.camera_mrays_per_cpu_s,
+                b.bounce_mrays_per_s / e.bounce_mrays_per_s,
+                b.bounce_mrays_per_cpu_s / e.bounce_mrays_per_cpu_s
             );
         }
     }

@@ -12,6 +12,7 @@ use rayon::prelude::*;
 
 pub use build::BuildParams;
 use build::{BuildPrim, Node, MAX_DEPTH};
+use triangle::intersect_triangle_k;
 pub use triangle::{intersect_triangle, RayPre};
 
 use super::{Accel, AccelKind};
@@ -93,7 +94,11 @@ impl Bvh {
         let mut sp = 0;
         let mut index = 0usize;
         loop {
-            let node = &self.nodes[index];
+            debug_assert!(index < self.nodes.len());
+            // SAFETY: `index` is 0 (the tree is not empty), `index + 1` of an interior node (its
+            // first child) or an interior node's `offset` (its second child): the builder writes
+            // only child indices below `nodes.len()` (checked by `tree_invariants_hold`).
+            let node = unsafe { self.nodes.get_unchecked(index) };
             if triangle::slab(pre, node.min, node.max, t_min, t_max) {
                 if node.count == 0 {
                     let (near, far) = if pre.neg[node.axis as usize] {
@@ -128,18 +133,20 @@ fn valid_interval(ray: &Ray) -> bool {
     ray.t_min <= ray.t_max
 }
 
-impl Accel for Bvh {
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        if !valid_interval(ray) {
-            return None;
-        }
-        let pre = RayPre::new(ray)?;
+impl Bvh {
+    /// Closest hit for rays whose dominant axis is `KZ`.
+    #[inline(always)]
+    fn closest<const KZ: usize>(&self, ray: &Ray, pre: &RayPre) -> Option<Hit> {
         let mut best: Option<(usize, f32, f32, f32)> = None;
-        self.traverse(ray, &pre, |start, end, mut t_max| {
-            for (i, [a, b, c]) in self.triangles[start..end].iter().enumerate() {
-                if let Some((t, b1, b2)) = intersect_triangle(&pre, *a, *b, *c, ray.t_min, t_max) {
+        self.traverse(ray, pre, |start, end, mut t_max| {
+            for i in start..end {
+                debug_assert!(i < self.triangles.len());
+                // SAFETY: leaf ranges lie within the triangle array (checked by
+                // `tree_invariants_hold`): the builder makes them from the same primitive list.
+                let [a, b, c] = unsafe { *self.triangles.get_unchecked(i) };
+                if let Some((t, b1, b2)) = intersect_triangle_k::<KZ>(pre, a, b, c, ray.t_min, t_max) {
                     t_max = t;
-                    best = Some((start + i, t, b1, b2));
+                    best = Some((i, t, b1, b2));
                 }
             }
             (t_max, false)
@@ -150,6 +157,36 @@ impl Accel for Bvh {
         })
     }
 
+    /// Whether anything is hit, for rays whose dominant axis is `KZ`.
+    #[inline(always)]
+    fn any<const KZ: usize>(&self, ray: &Ray, pre: &RayPre) -> bool {
+        let mut hit = false;
+        self.traverse(ray, pre, |start, end, t_max| {
+            hit = (start..end).any(|i| {
+                debug_assert!(i < self.triangles.len());
+                // SAFETY: as in `closest`.
+                let [a, b, c] = unsafe { *self.triangles.get_unchecked(i) };
+                intersect_triangle_k::<KZ>(pre, a, b, c, ray.t_min, t_max).is_some()
+            });
+            (t_max, hit)
+        });
+        hit
+    }
+}
+
+impl Accel for Bvh {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        if !valid_interval(ray) {
+            return None;
+        }
+        let pre = RayPre::new(ray)?;
+        match pre.kz {
+            0 => self.closest::<0>(ray, &pre),
+            1 => self.closest::<1>(ray, &pre),
+            _ => self.closest::<2>(ray, &pre),
+        }
+    }
+
     fn occluded(&self, ray: &Ray) -> bool {
         if !valid_interval(ray) {
             return false;
@@ -157,14 +194,11 @@ impl Accel for Bvh {
         let Some(pre) = RayPre::new(ray) else {
             return false;
         };
-        let mut hit = false;
-        self.traverse(ray, &pre, |start, end, t_max| {
-            hit = self.triangles[start..end]
-                .iter()
-                .any(|[a, b, c]| intersect_triangle(&pre, *a, *b, *c, ray.t_min, t_max).is_some());
-            (t_max, hit)
-        });
-        hit
+        match pre.kz {
+            0 => self.any::<0>(ray, &pre),
+            1 => self.any::<1>(ray, &pre),
+            _ => self.any::<2>(ray, &pre),
+        }
     }
 
     fn kind(&self) -> AccelKind {

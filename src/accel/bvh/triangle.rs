@@ -15,9 +15,11 @@ pub struct RayPre {
     /// Whether each component of `d` is negative (sign bit, so `-0.0` counts as negative, which
     /// matches the sign of the infinity in `inv_d`).
     pub neg: [bool; 3],
-    /// Axis permutation of the watertight test: `kz` is the dominant axis of `d`, and `kx`, `ky`
-    /// are swapped when `d[kz] < 0` to keep the triangle winding (Sec. 3, Fig. 2 of the paper).
-    k: [usize; 3],
+    /// The dominant axis of `d`; the watertight test permutes axes so that it becomes z, with
+    /// `kx = kz + 1`, `ky = kz + 2` (mod 3). The paper also swaps kx and ky when `d[kz] < 0` to
+    /// preserve the winding for back-face culling; this test is two-sided, and the swap would only
+    /// flip the signs of U, V, W and T together, so it is left out.
+    pub kz: usize,
     /// Shear constants (Sx, Sy, Sz) = (dx/dz, dy/dz, 1/dz) in the permuted frame.
     s: [f32; 3],
 }
@@ -50,19 +52,16 @@ impl RayPre {
         } else {
             2
         };
-        let mut kx = if kz == 2 { 0 } else { kz + 1 };
-        let mut ky = if kx == 2 { 0 } else { kx + 1 };
+        let kx = if kz == 2 { 0 } else { kz + 1 };
+        let ky = if kx == 2 { 0 } else { kx + 1 };
         let da = d.to_array();
-        if da[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
         let dz = da[kz];
         let s = [da[kx] / dz, da[ky] / dz, 1.0 / dz];
         Some(RayPre {
             o: ray.o,
             inv_d: Vec3::ONE / d,
             neg: [d.x.is_sign_negative(), d.y.is_sign_negative(), d.z.is_sign_negative()],
-            k: [kx, ky, kz],
+            kz,
             s,
         })
     }
@@ -70,12 +69,13 @@ impl RayPre {
     /// The vertex `p` relative to the ray origin, permuted so that the ray runs along +z and
     /// sheared so that it becomes the z axis (Eq. 2–3 of the paper), except that the z coordinate
     /// is only permuted; it is scaled by Sz later, only for triangles that pass the edge tests.
+    /// The permutation is a const parameter: traversal is instantiated once per dominant axis so
+    /// that the permutation costs nothing per triangle.
     #[inline(always)]
-    fn transform(&self, p: Vec3) -> (f32, f32, f32) {
-        let a = (p - self.o).to_array();
-        let [kx, ky, kz] = self.k;
-        let z = a[kz];
-        (a[kx] - self.s[0] * z, a[ky] - self.s[1] * z, z)
+    fn transform<const KZ: usize>(&self, p: Vec3) -> (f32, f32, f32) {
+        let a = p - self.o;
+        let z = a[KZ];
+        (a[(KZ + 1) % 3] - self.s[0] * z, a[(KZ + 2) % 3] - self.s[1] * z, z)
     }
 }
 
@@ -107,7 +107,7 @@ fn edge_exact(a: f32, d: f32, b: f32, c: f32) -> f32 {
 /// Watertight because a shared edge's function is computed from the same transformed vertices in
 /// both triangles, with swapped roles that flip the sign exactly, and exact zeros are resolved in
 /// double precision; points on an edge or vertex (all three functions ≥ 0 or all ≤ 0) count as hits.
-#[inline(always)]
+#[inline]
 pub fn intersect_triangle(
     pre: &RayPre,
     v0: Vec3,
@@ -116,9 +116,27 @@ pub fn intersect_triangle(
     t_min: f32,
     t_max: f32,
 ) -> Option<(f32, f32, f32)> {
-    let (ax, ay, az) = pre.transform(v0);
-    let (bx, by, bz) = pre.transform(v1);
-    let (cx, cy, cz) = pre.transform(v2);
+    match pre.kz {
+        0 => intersect_triangle_k::<0>(pre, v0, v1, v2, t_min, t_max),
+        1 => intersect_triangle_k::<1>(pre, v0, v1, v2, t_min, t_max),
+        _ => intersect_triangle_k::<2>(pre, v0, v1, v2, t_min, t_max),
+    }
+}
+
+/// [`intersect_triangle`] for rays whose dominant axis is `KZ` (`pre.kz == KZ`).
+#[inline(always)]
+pub fn intersect_triangle_k<const KZ: usize>(
+    pre: &RayPre,
+    v0: Vec3,
+    v1: Vec3,
+    v2: Vec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<(f32, f32, f32)> {
+    debug_assert_eq!(pre.kz, KZ);
+    let (ax, ay, az) = pre.transform::<KZ>(v0);
+    let (bx, by, bz) = pre.transform::<KZ>(v1);
+    let (cx, cy, cz) = pre.transform::<KZ>(v2);
 
     // Scaled barycentric coordinates (Eq. 4): U weights v0, V weights v1, W weights v2.
     let mut u = cx * by - cy * bx;
