@@ -449,7 +449,7 @@ pub fn adaptive_integrate_2d(
 }
 
 /// ∫∫ f over a rectangle split into `na`×`nb` cells, each integrated adaptively (tolerance 1e-9
-/// per cell, at most 10 bisections per dimension): robust to discontinuities, e.g. a pdf that is zero outside a disk or a triangle.
+/// per cell, at most 8 bisections per dimension): robust to discontinuities, e.g. a pdf that is zero outside a disk or a triangle.
 pub fn integrate_2d(f: impl Fn([f64; 2]) -> f64, a_range: [f64; 2], b_range: [f64; 2], na: usize, nb: usize) -> f64 {
     let mut total = 0.0;
     for j in 0..nb {
@@ -458,7 +458,7 @@ pub fn integrate_2d(f: impl Fn([f64; 2]) -> f64, a_range: [f64; 2], b_range: [f6
             let a1 = a_range[0] + (a_range[1] - a_range[0]) * (i + 1) as f64 / na as f64;
             let b0 = b_range[0] + (b_range[1] - b_range[0]) * j as f64 / nb as f64;
             let b1 = b_range[0] + (b_range[1] - b_range[0]) * (j + 1) as f64 / nb as f64;
-            total += adaptive_integrate_2d(&f, [a0, a1], [b0, b1], 1e-9, 0, 10);
+            total += adaptive_integrate_2d(&f, [a0, a1], [b0, b1], 1e-9, 0, 8);
         }
     }
     total
