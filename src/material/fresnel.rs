@@ -43,12 +43,6 @@ pub fn reflect_z(w: Vec3) -> Vec3 {
     Vec3::new(-w.x, -w.y, w.z)
 }
 
-/// Mirror reflection of `w` about the unit vector `h`.
-#[inline]
-pub fn reflect(w: Vec3, h: Vec3) -> Vec3 {
-    2.0 * w.dot(h) * h - w
-}
-
 /// Refraction of `w` (pointing away from the surface) through the +z interface, given the
 /// `FresnelDielectric` of `w.z`: Snell's law keeps the tangential component scaled by 1/η_ti and
 /// flips sides. `None` under total internal reflection.
