@@ -77,6 +77,14 @@ int write_image(const char *path, int width, int height, int channels, int data_
     if (!out) {
         return fail(msg, msg_len, PLX_ERR_FORMAT, global_error());
     }
+    // libjpeg's default error handler, which OpenImageIO 2.4's JPEG writer keeps, calls exit() on
+    // an image larger than its limit: refuse such sizes here instead of losing the process.
+    const int jpeg_max_dimension = 65500;
+    if (std::string(out->format_name()) == "jpeg" && (width > jpeg_max_dimension || height > jpeg_max_dimension)) {
+        return fail(msg, msg_len, PLX_ERR_ARGUMENT,
+                    "JPEG images can be at most " + std::to_string(jpeg_max_dimension) + " pixels wide and high, not " +
+                        std::to_string(width) + "x" + std::to_string(height));
+    }
     OIIO::ImageSpec spec(width, height, channels, file_type);
     // 8-bit data has been tone mapped and encoded with the sRGB OETF; float data is scene-linear.
     spec.attribute("oiio:ColorSpace", data_type == PLX_DATA_UINT8 ? "sRGB" : "Linear");

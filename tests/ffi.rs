@@ -184,13 +184,24 @@ fn no_temporary_file_is_left_behind() {
     assert_eq!(read_exr(&path).unwrap().pixels[3], Rgb::splat(42.0));
     assert_eq!(entries(&dir), ["out.exr"]);
 
-    // Failure after OpenImageIO has written the temporary file: the final rename cannot replace
-    // a directory, so the write fails late, and the temporary must be removed.
+    // Failure after OpenImageIO has created the temporary file: libwebp refuses images wider
+    // than 16383 pixels only when it encodes them, at close. The temporary must be removed and
+    // the message must name the requested file, not the temporary.
+    let wide = Image::new(20_000, 1);
+    let err = write_image(&dir.join("wide.webp"), &wide, &WriteOptions::default()).unwrap_err();
+    assert!(matches!(err, ImageWriteError::Oiio { .. }), "{err}");
+    assert!(err.to_string().contains("wide.webp") && !err.to_string().contains("plexus-tmp"), "{err}");
+    assert_eq!(entries(&dir), ["out.exr"]);
+
+    // libjpeg would exit() the process on an image above its size limit; the shim refuses it.
+    let err = write_image(&dir.join("wide.jpg"), &Image::new(70_000, 1), &WriteOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("at most 65500 pixels"), "{err}");
+    assert_eq!(entries(&dir), ["out.exr"]);
+
+    // An existing directory under the requested name is refused before rendering.
     std::fs::create_dir(dir.join("taken.png")).unwrap();
-    std::fs::write(dir.join("taken.png").join("keep"), b"x").unwrap();
-    let err = write_image(&dir.join("taken.png"), &img, &WriteOptions::default()).unwrap_err();
-    assert!(matches!(err, ImageWriteError::Io { .. }), "{err}");
-    assert!(err.to_string().contains("taken.png"), "{err}");
+    let err = check_output_path(&dir.join("taken.png")).unwrap_err();
+    assert!(matches!(err, ImageWriteError::IsADirectory { .. }), "{err}");
     assert_eq!(entries(&dir), ["out.exr", "taken.png"]);
 
     // A malformed image is refused before anything touches the file system.

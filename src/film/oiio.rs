@@ -46,6 +46,8 @@ pub enum ImageWriteError {
     MissingDirectory { path: PathBuf, dir: PathBuf },
     #[error("cannot write '{path}': '{dir}' is not a directory")]
     NotADirectory { path: PathBuf, dir: PathBuf },
+    #[error("cannot write '{path}': it is a directory")]
+    IsADirectory { path: PathBuf },
     #[error("cannot write '{path}': the file name has no extension to choose an image format by")]
     NoExtension { path: PathBuf },
     #[error("cannot write '{path}': OpenImageIO cannot write '.{extension}' files")]
@@ -136,6 +138,9 @@ pub fn check_output_path(path: &Path) -> Result<(), ImageWriteError> {
     }
     if !dir.is_dir() {
         return Err(ImageWriteError::NotADirectory { path: path.to_path_buf(), dir: dir.to_path_buf() });
+    }
+    if path.is_dir() {
+        return Err(ImageWriteError::IsADirectory { path: path.to_path_buf() });
     }
     let Some(ext) = extension(path) else {
         return Err(ImageWriteError::NoExtension { path: path.to_path_buf() });
@@ -230,7 +235,9 @@ pub fn write_image(path: &Path, image: &Image, opts: &WriteOptions) -> Result<()
         )
     };
     if status != PLX_OK {
-        return Err(ImageWriteError::Oiio { path: path.to_path_buf(), message: message(&buf) });
+        // Messages may name the temporary file; the user only knows the name they asked for.
+        let text = message(&buf).replace(&temp.path.display().to_string(), &path.display().to_string());
+        return Err(ImageWriteError::Oiio { path: path.to_path_buf(), message: text });
     }
     std::fs::rename(&temp.path, path).map_err(|source| ImageWriteError::Io { path: path.to_path_buf(), source })?;
     temp.armed = false;
