@@ -520,3 +520,47 @@ fn documentation_examples_are_valid() {
     let checked = scenes.len();
     assert!(checked >= 12, "{checked}");
 }
+
+/// The door scene's point: light reaches the visible room only through the doorway. Every
+/// unoccluded segment from the light to a grid of points in the visible room must cross the wall
+/// plane inside the doorway (the portal quad), and some must exist.
+#[test]
+fn veach_ajar_light_enters_only_through_the_doorway() {
+    let s = load_ok(&scenes_dir().join("veach-ajar.toml")).scene;
+    let light = s.shapes.iter().position(|i| i.light.is_some()).expect("one area light");
+    let lb = s.meshes[light].bounds();
+    let portal = s.portals[0];
+    let wall_x = portal.corner.x;
+    let (y0, y1) = (portal.corner.y, portal.corner.y + portal.edge_v.y);
+    let (z0, z1) = (portal.corner.z, portal.corner.z + portal.edge_u.z);
+    let lerp = |a: f32, b: f32, i: usize, n: usize| a + (b - a) * (i as f32 + 0.5) / n as f32;
+    let (mut through, mut blocked) = (0, 0);
+    for li in 0..36 {
+        // In front of the light (it faces -z).
+        let p =
+            glam::Vec3::new(lerp(lb.min.x, lb.max.x, li % 6, 6), lerp(lb.min.y, lb.max.y, li / 6, 6), lb.min.z - 1e-3);
+        for qi in 0..(12 * 6 * 12) {
+            let q = glam::Vec3::new(
+                lerp(-2.7, 7.3, qi % 12, 12),
+                lerp(0.05, 3.75, (qi / 12) % 6, 6),
+                lerp(-7.5, 0.5, qi / 72, 12),
+            );
+            let d = q - p;
+            let len = d.length();
+            let ray = plexus::geometry::Ray { o: p, d: d / len, t_min: 1e-4 * len, t_max: len * (1.0 - 1e-4) };
+            if s.occluded(&ray) {
+                blocked += 1;
+                continue;
+            }
+            through += 1;
+            let t = (wall_x - p.x) / d.x;
+            let c = p + d * t;
+            assert!(
+                (y0..=y1).contains(&c.y) && (z0..=z1).contains(&c.z),
+                "light reaches {q} without passing the doorway (crosses the wall at {c})"
+            );
+        }
+    }
+    // 419 of the 31,104 segments get through when this was written.
+    assert!(through > 0 && blocked > through, "through {through}, blocked {blocked}");
+}
