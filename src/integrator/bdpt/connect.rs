@@ -4,6 +4,9 @@
 //! the same path. BDPT sums all techniques; MMLT evaluates one at a time (MMLT paper Sec. 4, "we
 //! connect subpaths only at their endpoints"); RJMLT reads the weight vector to choose its jumps.
 
+// `!(x > 0.0)` is deliberate throughout: it rejects NaN densities along with zero and negative ones.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use glam::Vec2;
 
 use crate::scene::Scene;

@@ -14,6 +14,9 @@
 //! reversible-jump MLT can write inverted numbers into them without shifting anything else.
 //! `t = 1` connections read nothing (the pinhole has no lens).
 
+// `!(x > 0.0)` is deliberate throughout: it rejects NaN densities along with zero and negative ones.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use glam::{UVec2, Vec2};
 
 use crate::camera::CAMERA_SAMPLE_DIMS;
