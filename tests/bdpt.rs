@@ -55,8 +55,8 @@ fn render(scene: &Scene, integrator: &str, params: &str, spp: u64, seed: u64) ->
 
 /// Luminance means of the GRID×GRID regions, then of the whole image.
 fn region_means(image: &Image) -> Vec<f64> {
-    let mut sums = vec![0.0f64; GRID * GRID + 1];
-    let mut counts = vec![0usize; GRID * GRID + 1];
+    let mut sums = [0.0f64; GRID * GRID + 1];
+    let mut counts = [0usize; GRID * GRID + 1];
     for y in 0..image.height {
         for x in 0..image.width {
             let v = luminance(image.get(x, y)) as f64;
