@@ -42,6 +42,8 @@ pub struct BenchOptions {
     pub threads: Vec<usize>,
     /// Seed of the scene's displacements and of the random walks.
     pub seed: u64,
+    /// Samples per pixel of the path-tracer measurement (0 skips it).
+    pub pt_spp: u64,
 }
 
 impl Default for BenchOptions {
@@ -54,6 +56,7 @@ impl Default for BenchOptions {
             repetitions: 5,
             threads: vec![1, 2],
             seed: 1,
+            pt_spp: 1,
         }
     }
 }
@@ -77,6 +80,25 @@ pub struct BenchRow {
     pub bounce_mrays_per_cpu_s: f64,
 }
 
+/// The path tracer (`integrator::pt`) rendering the benchmark scene with Embree.
+#[derive(Clone, Debug, Serialize)]
+pub struct PtRow {
+    pub threads: usize,
+    /// Closest-hit and shadow queries of one render.
+    pub rays: u64,
+    pub shadow_rays: u64,
+    /// Median render time (the integrator's own wall time) and process CPU time.
+    pub seconds: f64,
+    pub cpu_seconds: f64,
+    /// All queries (closest hit and shadow) per second of wall-clock time and per CPU-second.
+    pub mrays_per_s: f64,
+    pub mrays_per_cpu_s: f64,
+    /// `mrays_per_s` over the bare Embree loop's bounce-ray rate on the same thread count (target
+    /// ≥ 0.7), and the same ratio per CPU-second.
+    pub ratio_to_bare_loop: f64,
+    pub ratio_to_bare_loop_cpu: f64,
+}
+
 /// Everything `run` measured.
 #[derive(Clone, Debug, Serialize)]
 pub struct BenchReport {
@@ -90,6 +112,8 @@ pub struct BenchReport {
     pub bvh_bytes: usize,
     pub embree_bytes: usize,
     pub rows: Vec<BenchRow>,
+    /// The path tracer on the same scene with Embree, per thread count.
+    pub path_tracer: Vec<PtRow>,
     /// 1-minute load average (/proc/loadavg) when the benchmark started and ended: other work on
     /// the machine slows the wall-clock figures, not the per-CPU-second ones.
     pub load_before: String,
@@ -293,6 +317,82 @@ impl BenchScene {
     }
 }
 
+/// The benchmark scene as a renderable [`Scene`](crate::scene::Scene): the generated meshes, all
+/// diffuse white (reflectance 0.7), lit by a 6 × 6 quad light under the room's ceiling, on Embree.
+/// The light, camera and material come from the scene loader (so they are built exactly as a
+/// scene file would build them); the generated meshes are appended after the light.
+pub fn renderable_scene(bench: &BenchScene) -> anyhow::Result<crate::scene::Scene> {
+    let c = &bench.camera;
+    let look_at = c.position + c.forward;
+    let toml = format!(
+        r#"
+[camera]
+position = [{}, {}, {}]
+look_at = [{}, {}, {}]
+up = [0.0, 1.0, 0.0]
+fov = {}
+resolution = [{}, {}]
+
+[materials.white]
+type = "diffuse"
+reflectance = 0.7
+
+[[shapes]]
+type = "quad"
+material = "white"
+emission = {{ radiance = [20.0, 20.0, 20.0] }}
+transform = {{ scale = [3.0, 3.0, 1.0], rotate = {{ axis = [1, 0, 0], angle = 90 }}, translate = [0.0, 9.9, 0.0] }}
+"#,
+        c.position.x, c.position.y, c.position.z, look_at.x, look_at.y, look_at.z, c.fov_y_degrees, c.width, c.height
+    );
+    let mut scene = crate::scene::load_scene_str(
+        &toml,
+        std::path::Path::new(""),
+        "<bench scene>",
+        Some(crate::accel::AccelKind::Embree),
+    )
+    .context("building the benchmark scene's light and camera")?
+    .scene;
+    anyhow::ensure!(scene.materials.len() == 1, "bench: expected one material in the benchmark scene");
+    for (k, mesh) in bench.meshes.iter().enumerate() {
+        scene.bounds = scene.bounds.union(&mesh.bounds());
+        scene.meshes.push(Arc::clone(mesh));
+        scene.shapes.push(crate::scene::ShapeInfo { name: format!("bench mesh {k}"), material: 0, light: None });
+    }
+    scene.accel = crate::accel::build(crate::accel::AccelKind::Embree, &scene.meshes)?;
+    Ok(scene)
+}
+
+/// Renders `scene` with the path tracer (`max_depth` bounces, `spp` samples per pixel) on
+/// `threads` threads, `reps` times; returns the median timings and the ray counts.
+fn measure_path_tracer(
+    scene: &crate::scene::Scene,
+    threads: usize,
+    spp: u64,
+    max_depth: u32,
+    reps: u32,
+    seed: u64,
+) -> anyhow::Result<(f64, f64, u64, u64)> {
+    use crate::integrator::{create, Budget, NoProgress, RenderJob};
+    let mut params = toml::Table::new();
+    params.insert("max_depth".into(), toml::Value::Integer(i64::from(max_depth.max(1))));
+    let pt = create("pt", &params)?;
+    let job = RenderJob { budget: Budget::SamplesPerPixel(spp), seed, threads };
+    let mut rays = (0, 0);
+    let mut runs = Vec::new();
+    for _ in 0..reps.max(1) {
+        let cpu = process_cpu_time();
+        let out = pt.render(scene, &job, &NoProgress)?;
+        runs.push(Timing { wall: out.wall_time, cpu: process_cpu_time().saturating_sub(cpu) });
+        rays = (out.counters.rays, out.counters.shadow_rays);
+    }
+    let (wall, cpu) = time_median(runs.len() as u32, {
+        let mut it = runs.into_iter();
+        move || it.next().unwrap_or(Timing { wall: Duration::ZERO, cpu: Duration::ZERO })
+    });
+    Ok((wall, cpu, rays.0, rays.1))
+}
+
 // -------------------------------------------------------------------------------------------------
 // Measurement
 // -------------------------------------------------------------------------------------------------
@@ -437,6 +537,8 @@ pub fn run(opts: &BenchOptions, out: &mut dyn Write) -> anyhow::Result<BenchRepo
     let mut bvh_nodes = 0;
     let mut bvh_bytes = 0;
     let mut embree_bytes = 0;
+    let mut path_tracer = Vec::new();
+    let mut pt_scene: Option<anyhow::Result<crate::scene::Scene>> = None;
     for &threads in &opts.threads {
         let pool = thread_pool(threads)?;
 
@@ -483,6 +585,39 @@ pub fn run(opts: &BenchOptions, out: &mut dyn Write) -> anyhow::Result<BenchRepo
         for (name, c, b) in &hit_counts {
             writeln!(out, "  {name}: {c} camera hits, {b} bounce hits")?;
         }
+        drop((embree, bvh));
+
+        if opts.pt_spp > 0 {
+            let renderable = pt_scene.get_or_insert_with(|| renderable_scene(&scene));
+            let renderable = renderable.as_ref().map_err(|e| anyhow::anyhow!("{e:#}"))?;
+            let (seconds, cpu_seconds, r, shadow) =
+                measure_path_tracer(renderable, threads, opts.pt_spp, opts.bounces + 1, reps, opts.seed)?;
+            let total = (r + shadow) as f64;
+            let bare = rows.iter().find(|row| row.accel == "embree bare loop" && row.threads == threads);
+            let row = PtRow {
+                threads,
+                rays: r,
+                shadow_rays: shadow,
+                seconds,
+                cpu_seconds,
+                mrays_per_s: total / seconds / 1e6,
+                mrays_per_cpu_s: total / cpu_seconds / 1e6,
+                ratio_to_bare_loop: bare.map_or(f64::NAN, |b| total / seconds / 1e6 / b.bounce_mrays_per_s),
+                ratio_to_bare_loop_cpu: bare.map_or(f64::NAN, |b| total / cpu_seconds / 1e6 / b.bounce_mrays_per_cpu_s),
+            };
+            writeln!(
+                out,
+                "  path tracer {} thread(s): {} rays + {} shadow rays in {:.3} s: {:.2} Mrays/s ({:.2} per CPU-s), {:.0}% of the bare loop",
+                threads,
+                r,
+                shadow,
+                seconds,
+                row.mrays_per_s,
+                row.mrays_per_cpu_s,
+                100.0 * row.ratio_to_bare_loop
+            )?;
+            path_tracer.push(row);
+        }
     }
 
     let report = BenchReport {
@@ -495,6 +630,7 @@ pub fn run(opts: &BenchOptions, out: &mut dyn Write) -> anyhow::Result<BenchRepo
         bvh_bytes,
         embree_bytes,
         rows,
+        path_tracer,
         load_before,
         load_after: load_average(),
     };
@@ -559,6 +695,22 @@ pub fn markdown_table(report: &BenchReport) -> String {
                 b.camera_mrays_per_cpu_s / e.camera_mrays_per_cpu_s,
                 b.bounce_mrays_per_s / e.bounce_mrays_per_s,
                 b.bounce_mrays_per_cpu_s / e.bounce_mrays_per_cpu_s
+            );
+        }
+    }
+    if !report.path_tracer.is_empty() {
+        s += "\n| path tracer (Embree) | threads | Mrays/s | Mrays/CPU-s | share of shadow rays | vs bare loop (bounce rays) | same, per CPU-s |\n";
+        s += "| --- | ---: | ---: | ---: | ---: | ---: | ---: |\n";
+        for p in &report.path_tracer {
+            s += &format!(
+                "| pt, {} spp | {} | {:.2} | {:.2} | {:.0}% | {:.0}% | {:.0}% |\n",
+                report.options.pt_spp,
+                p.threads,
+                p.mrays_per_s,
+                p.mrays_per_cpu_s,
+                100.0 * p.shadow_rays as f64 / (p.rays + p.shadow_rays).max(1) as f64,
+                100.0 * p.ratio_to_bare_loop,
+                100.0 * p.ratio_to_bare_loop_cpu
             );
         }
     }
