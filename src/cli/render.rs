@@ -101,6 +101,14 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
 
     for path in &plan.outputs {
         write_image(path, &output.image, &WriteOptions::default())?;
+        // Extra layers (e.g. BDPT's per-technique images) go beside each EXR output as
+        // `<stem>.<layer>.exr`.
+        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+            let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+            for (name, layer) in &output.layers {
+                write_image(&path.with_file_name(format!("{stem}.{name}.exr")), layer, &WriteOptions::default())?;
+            }
+        }
     }
     let scene_name = match &args.scene {
         Some(p) => p.display().to_string(),
