@@ -2,6 +2,7 @@
 //! `error: ...` on stderr and an exit code: 2 for bad input or usage (scene files, settings, output
 //! paths, arguments), 1 for failures at run time (writing an image, an internal error).
 
+mod bench;
 mod compare;
 mod converge;
 mod info;
@@ -37,6 +38,9 @@ enum Commands {
     Converge(converge::ConvergeArgs),
     /// Render a reference image (long, seeded, optionally at a reduced resolution).
     Reference(reference::ReferenceArgs),
+    /// Accelerator throughput (Embree, the in-house BVH, a bare Embree loop, the path tracer) on a
+    /// generated scene of more than a million triangles; prints a Markdown table.
+    Bench(bench::BenchArgs),
     // Further verbs (compare, converge, bench, ...) go here, one variant each, with their
     // argument struct in their own file under src/cli/ and one arm in `run` below.
 }
@@ -58,6 +62,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Commands::Compare(args) => compare::run_compare(&args),
         Commands::Converge(args) => converge::run_converge(&args),
         Commands::Reference(args) => reference::run_reference(&args),
+        Commands::Bench(args) => bench::run_bench(&args),
     }
 }
 
