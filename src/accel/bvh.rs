@@ -22,7 +22,10 @@ use crate::geometry::{Hit, Ray, TriangleMesh};
 ///
 /// Leaves reference contiguous ranges of triangles stored in leaf order. The vertices of each
 /// triangle are copied there (36 bytes per triangle plus 8 for its ids) rather than read through
-/// the mesh's index and position arrays: MEASUREMENT PENDING.
+/// the mesh's index and position arrays, which saves two dependent loads (index, then three
+/// positions) per triangle test at the cost of 43 MB on the 1.19M-triangle benchmark scene. An A/B
+/// measurement against per-leaf (geom_id, prim_id) references has not been made yet (see
+/// docs/bench.md); `tree_invariants_hold` checks the copies equal the meshes' triangles.
 pub struct Bvh {
     meshes: Vec<Arc<TriangleMesh>>,
     nodes: Vec<Node>,
