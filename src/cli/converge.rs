@@ -12,7 +12,8 @@ use plexus::film::exr_io::read_exr;
 use plexus::integrator::{self, INTEGRATOR_NAMES};
 use plexus::metrics::compare::DEFAULT_EPSILON;
 use plexus::metrics::converge::{
-    camera_at_resolution, markdown_tables, run_study, summarize, write_csv, ConvergeError, StudyConfig,
+    camera_at_resolution, markdown_tables, parse_csv, run_study, summarize, write_csv, ConvergeError, RunRecord,
+    StudyConfig,
 };
 use plexus::metrics::plot::plot_convergence;
 use plexus::scene::load_scene;
@@ -24,14 +25,14 @@ pub struct ConvergeArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
     /// Reference image (EXR) of the same scene and resolution; see docs/reference-images.md.
-    #[arg(long, value_name = "REF.exr")]
-    pub reference: PathBuf,
+    #[arg(long, value_name = "REF.exr", required_unless_present = "replot")]
+    pub reference: Option<PathBuf>,
     /// Integrators to compare, comma-separated.
-    #[arg(long, value_delimiter = ',', required = true, value_name = "NAMES",
-          help = format!("Integrators to compare, comma-separated: {}", INTEGRATOR_NAMES.join(", ")))]
+    #[arg(long, value_delimiter = ',', required_unless_present = "replot", value_name = "NAMES",
+          help = format!("Integrators to compare, comma-separated, or 'all': {}", INTEGRATOR_NAMES.join(", ")))]
     pub integrators: Vec<String>,
     /// Wall-clock budgets in seconds, comma-separated.
-    #[arg(long, value_delimiter = ',', required = true, value_name = "SECONDS")]
+    #[arg(long, value_delimiter = ',', required_unless_present = "replot", value_name = "SECONDS")]
     pub times: Vec<f64>,
     /// Number of seeds per integrator and budget (seeds first-seed .. first-seed + N).
     #[arg(long, value_name = "N", default_value_t = 3)]
@@ -54,6 +55,9 @@ pub struct ConvergeArgs {
     /// ε of the relative MSE (a−b)²/(b²+ε).
     #[arg(long, value_name = "E", default_value_t = DEFAULT_EPSILON)]
     pub epsilon: f64,
+    /// Do not render: redraw the Markdown tables and the plot from a CSV an earlier run wrote.
+    #[arg(long, value_name = "CSV")]
+    pub replot: Option<PathBuf>,
 }
 
 pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
@@ -68,7 +72,14 @@ pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
     if !args.out_dir.is_dir() {
         return Err(bad_input(format!("--out-dir '{}' is not an existing directory", args.out_dir.display())));
     }
-    let reference = read_exr(&args.reference).map_err(bad_input)?;
+    let stem = args.scene.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
+    if let Some(csv) = &args.replot {
+        let text = std::fs::read_to_string(csv).map_err(|e| bad_input(format!("reading {}: {e}", csv.display())))?;
+        let records = parse_csv(&text).map_err(|e| bad_input(format!("{}: {e}", csv.display())))?;
+        return write_reports(args, &stem, &records, None);
+    }
+    let Some(reference_path) = &args.reference else { return Err(bad_input("--reference is required")) };
+    let reference = read_exr(reference_path).map_err(bad_input)?;
     let mut loaded = load_scene(&args.scene, args.accel)?;
     let (ref_w, ref_h) = (reference.width as u32, reference.height as u32);
     let cam = &loaded.scene.camera;
@@ -85,7 +96,11 @@ pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
         .filter(|&n| n > 0)
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let config = StudyConfig {
-        integrators: args.integrators.iter().map(|s| s.trim().to_string()).collect(),
+        integrators: if args.integrators.len() == 1 && args.integrators[0].trim() == "all" {
+            INTEGRATOR_NAMES.iter().map(|s| s.to_string()).collect()
+        } else {
+            args.integrators.iter().map(|s| s.trim().to_string()).collect()
+        },
         budgets: args.times.clone(),
         first_seed: args.first_seed,
         seeds: args.seeds,
@@ -100,10 +115,7 @@ pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
         let base = if name == render.integrator { render.integrator_params.clone() } else { toml::Table::new() };
         integrator::merge_params(&base, &overrides)
     };
-    let stem = args.scene.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
     let csv = args.out_dir.join(format!("{stem}-converge.csv"));
-    let md = args.out_dir.join(format!("{stem}-converge.md"));
-    let png = args.out_dir.join(format!("{stem}-converge.png"));
 
     let total_time: f64 = config.budgets.iter().sum::<f64>() * (config.seeds * config.integrators.len() as u64) as f64;
     eprintln!(
@@ -132,21 +144,38 @@ pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
         other => anyhow::Error::new(other),
     })?;
     write_csv(&records, &csv)?;
-    let summaries = summarize(&records);
+    write_reports(args, &stem, &records, Some((&config, threads)))?;
+    eprintln!("-> {}", csv.display());
+    Ok(())
+}
+
+/// Writes `<stem>-converge.md` (the equal-time tables) and `<stem>-converge.png` (the plot).
+fn write_reports(
+    args: &ConvergeArgs,
+    stem: &str,
+    records: &[RunRecord],
+    run: Option<(&StudyConfig, usize)>,
+) -> anyhow::Result<()> {
+    let md = args.out_dir.join(format!("{stem}-converge.md"));
+    let png = args.out_dir.join(format!("{stem}-converge.png"));
+    let summaries = summarize(records);
     let command: Vec<String> = std::env::args().collect();
-    let mut text = format!(
-        "# Convergence: {}\n\nReference: `{}`. Seeds {}..{} ({} per cell), {} threads. Command:\n\n```\n{}\n```\n\n",
-        args.scene.display(),
-        args.reference.display(),
-        config.first_seed,
-        config.first_seed + config.seeds - 1,
-        config.seeds,
-        threads,
-        command.join(" ")
-    );
-    text.push_str(&markdown_tables(&summaries, config.epsilon));
+    let mut text = format!("# Convergence: {}\n\n", args.scene.display());
+    if let Some((config, threads)) = run {
+        let reference = args.reference.as_ref().map_or_else(String::new, |r| r.display().to_string());
+        text += &format!(
+            "Reference: `{reference}`. Seeds {}..{} ({} per cell), {threads} threads. Command:\n\n```\n{}\n```\n\n",
+            config.first_seed,
+            config.first_seed + config.seeds - 1,
+            config.seeds,
+            command.join(" ")
+        );
+    } else {
+        text += &format!("Redrawn from a CSV:\n\n```\n{}\n```\n\n", command.join(" "));
+    }
+    text.push_str(&markdown_tables(&summaries, args.epsilon));
     std::fs::write(&md, text).map_err(|e| anyhow::anyhow!("writing {}: {e}", md.display()))?;
     plot_convergence(&png, &summaries, &format!("{stem}: error vs wall time"))?;
-    eprintln!("-> {}, {}, {}", csv.display(), md.display(), png.display());
+    eprintln!("-> {}, {}", md.display(), png.display());
     Ok(())
 }
