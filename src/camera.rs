@@ -1,6 +1,9 @@
 //! The pinhole camera: primary rays, and the importance function light tracing and BDPT need to
 //! connect a vertex to the lens.
 
+// `!(x > 0.0)` is deliberate: it rejects NaN along with the out-of-range values.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use glam::{Vec2, Vec3};
 
 use crate::geometry::Ray;
@@ -39,7 +42,8 @@ pub struct CameraWiSample {
     /// Importance W_e for that direction.
     pub importance: Rgb,
     /// Solid-angle density at the reference point (the pinhole is a delta position: this is the
-    /// conversion factor distance² / |cos| at the reference, as pbrt's `SampleWi`).
+    /// conversion factor distance² / cos θ, θ the angle between the ray and the viewing axis at the
+    /// pinhole, as pbrt-v4's `SampleWi` with a lens of area 1).
     pub pdf: f32,
     /// Continuous raster position (x right, y down, in pixels).
     pub raster: Vec2,

@@ -10,6 +10,9 @@
 //!   [½, 1) for the back, each stretched back to [0, 1): the side is a function of the direction,
 //!   so this stays a bijection and its inverse is exact.
 
+// `!(x > 0.0)` is deliberate throughout: it rejects NaN along with the out-of-range values.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};

@@ -18,6 +18,9 @@
 //! `u[1..3]` the direction. `sample_emission`: `u[0]` unused, `u[1..3]` the direction towards the
 //! environment, `u[3..5]` the point on the disk (concentric mapping).
 
+// `!(x > 0.0)` is deliberate throughout: it rejects NaN along with the out-of-range values.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use std::f32::consts::PI;
 
 use glam::{Mat3, Vec2, Vec3};

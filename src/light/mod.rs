@@ -15,6 +15,9 @@
 //! unused dimension), a fresh uniform `gamma` and return `None` for a point the sampler cannot
 //! produce (off the emitter, behind a one-sided emitter, in a texel of zero density).
 
+// `!(x > 0.0)` is deliberate throughout: it rejects NaN along with the out-of-range values.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 mod area;
 mod environment;
 
@@ -234,5 +237,77 @@ impl LightSampler {
     /// interval as `gamma` is uniform; Jacobian pmf(index). `None` for a light of zero probability.
     pub fn invert(&self, index: usize, gamma: f32) -> Option<f32> {
         self.distribution.invert_discrete(index, gamma)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Aabb;
+    use crate::sampling::Rng;
+
+    fn triangle() -> Arc<TriangleMesh> {
+        Arc::new(TriangleMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]], None, None).unwrap())
+    }
+
+    #[test]
+    fn light_sampler_by_power_with_inverse() {
+        let bounds = Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) };
+        let lights = vec![
+            Light::Area(AreaLight::new(triangle(), 0, Rgb::ONE, false)),
+            Light::Area(AreaLight::new(triangle(), 1, Rgb::splat(2.0), true)),
+            Light::ConstantEnvironment(ConstantEnvironment::new(Rgb::ZERO, bounds)),
+        ];
+        // Power: L·A·π per side; luminance of white is 1.
+        let p0 = std::f32::consts::PI * 0.5;
+        assert!((lights[0].power() - p0).abs() < 1e-4 * p0);
+        assert!((lights[1].power() - 4.0 * p0).abs() < 1e-4 * p0);
+        assert_eq!(lights[2].power(), 0.0);
+        let s = LightSampler::new(&lights);
+        assert!((s.pmf(0) - 0.2).abs() < 1e-6 && (s.pmf(1) - 0.8).abs() < 1e-6 && s.pmf(2) == 0.0);
+        let mut rng = Rng::new(12, 0);
+        for _ in 0..1000 {
+            let (i, pmf, r) = s.sample(rng.uniform());
+            assert!(i < 2 && pmf > 0.0 && (0.0..1.0).contains(&r));
+            let g = rng.uniform();
+            let u = s.invert(i, g).unwrap();
+            let (j, _, r2) = s.sample(u);
+            assert_eq!(i, j);
+            assert!((r2 - g).abs() < 1e-4);
+        }
+        assert_eq!(s.invert(2, 0.5), None);
+        // No power anywhere: uniform choice.
+        let dark = LightSampler::new(&lights[2..]);
+        assert_eq!(dark.pmf(0), 1.0);
+    }
+
+    #[test]
+    fn dispatch_inverts_li_and_emission_for_every_kind() {
+        let bounds = Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) };
+        let texels: Vec<Rgb> = (0..32).map(|i| Rgb::splat(0.1 + (i % 5) as f32)).collect();
+        let lights = [
+            Light::Area(AreaLight::new(triangle(), 0, Rgb::ONE, true)),
+            Light::ConstantEnvironment(ConstantEnvironment::new(Rgb::ONE, bounds)),
+            Light::ImageEnvironment(ImageEnvironment::new(8, 4, texels, 2.0, glam::Mat3::IDENTITY, bounds)),
+        ];
+        let reference = Vec3::new(0.2, 0.3, 2.0);
+        let mut rng = Rng::new(13, 0);
+        for light in &lights {
+            for _ in 0..500 {
+                let u = [rng.uniform(), rng.uniform(), rng.uniform()];
+                let Some(s) = light.sample_li(reference, u) else { continue };
+                let pdf = light.pdf_li(reference, s.wi, s.p, s.n);
+                assert!((pdf - s.pdf).abs() <= 1e-3 * s.pdf, "{pdf} vs {}", s.pdf);
+                let v = light.invert_li(s.wi, 0, s.p, 0.5).unwrap();
+                let again = light.sample_li(reference, v).unwrap();
+                assert!(again.wi.dot(s.wi) > 1.0 - 1e-6);
+                let ue = [rng.uniform(), rng.uniform(), rng.uniform(), rng.uniform(), rng.uniform()];
+                let Some(e) = light.sample_emission(ue) else { continue };
+                let ve = light.invert_emission(0, e.p, e.dir, 0.5).unwrap();
+                let e2 = light.sample_emission(ve).unwrap();
+                assert!(e2.dir.dot(e.dir) > 1.0 - 1e-6 && (e2.p - e.p).length() < 1e-4);
+            }
+        }
+        assert!(!lights[0].is_environment() && lights[2].is_environment());
     }
 }

@@ -13,6 +13,9 @@
 //! 1 − (1 − significance)^(1/test_count), so that across all `test_count` tests of a suite the
 //! probability of any false rejection is `significance` (1e-3 by default). Every test is seeded.
 
+// `!(x > 0.0)` is deliberate throughout: it rejects NaN along with the out-of-range values.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use glam::Vec3;
 
 use super::Rng;

@@ -6,6 +6,9 @@
 //! inverse is probabilistic (RJMLT Eq. 40): a fresh uniform γ places u = cdf[i] + γ·pmf(i) inside
 //! the interval, with Jacobian pmf(i).
 
+// `!(x > 0.0)` is deliberate throughout: it rejects NaN along with the out-of-range values.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use glam::Vec2;
 
 use super::warp::ONE_MINUS_EPSILON;
