@@ -86,6 +86,14 @@ impl Accumulator {
             a[2] += b[2];
         }
     }
+    /// Adds `other · scale` into this buffer.
+    pub fn merge_scaled(&mut self, other: &Accumulator, scale: f64) {
+        for (a, b) in self.sums.iter_mut().zip(&other.sums) {
+            a[0] += b[0] * scale;
+            a[1] += b[1] * scale;
+            a[2] += b[2] * scale;
+        }
+    }
     /// Sums buffers in the order given (worker 0 first): the fixed order that makes renders
     /// reproducible.
     pub fn merge_in_order(buffers: &[Accumulator]) -> Option<Accumulator> {

@@ -1,6 +1,7 @@
 //! Primary-sample-space Markov chain methods: the shared Kelemen sampler, PSSMLT, MMLT and RJMLT.
 
 pub mod jump;
+pub mod mlt;
 pub mod sampler;
 pub mod validation_1d;
 

@@ -1,0 +1,625 @@
+//! Primary-sample-space MLT (Kelemen et al. 2002; MMLT paper Alg. 1) and Multiplexed MLT
+//! (Hachisuka et al. 2014, Alg. 2), sharing one chain driver, one bootstrap, one splat path and
+//! one statistics type. They differ only in how a primary-sample state maps to contributions:
+//!
+//! - **PSSMLT**: the camera and light subpaths of the state are combined with every BDPT technique
+//!   (Alg. 1, COMBINE); the target is the luminance of the sum of the MIS-weighted contributions.
+//! - **MMLT**: one chain per path depth d (d scattering events, d + 2 vertices); an extra primary
+//!   coordinate u_t picks one of the n_d = d + 2 techniques, s = ⌊n_d·u_t⌋ light vertices and
+//!   t = n_d − s camera vertices, connected only at their endpoints (Sec. 4, "Path Generation");
+//!   the target is the luminance of that one MIS-weighted contribution ŵ_t Ĉ_t (Eq. 20).
+//!
+//! # Normalisation
+//! With b_d = ∫ f̂_d over the (ū, u_t) unit cube (estimated by a bootstrap of uniform samples), a
+//! chain of depth d samples (ū, u_t) ∝ f̂_d, and the pixel j of the depth-d image is
+//!   I_j = n_d · b_d · P · E_π[ 1_j(raster) · ŵ_t C_t / f̂_d ],
+//! where P is the pixel count (the film position is uniform over the whole film) and n_d the
+//! number of techniques u_t spreads over (the paper's factor k+2, Sec. 4 "Accumulation"). Each
+//! depth's splats go to their own film, divided at the end by the number of iterations that depth
+//! received; this equals the paper's 1/p(k) scaling in expectation and lets b_d be refined from
+//! the large steps (uniform samples) during the render without re-weighting earlier splats.
+//! PSSMLT is the special case of one "depth" with n = 1.
+//!
+//! # Expected values
+//! Each iteration splats the proposal with weight a and the current state with 1 − a (Veach's
+//! expected values), so rejected proposals still contribute.
+
+use glam::Vec2;
+use serde::{Deserialize, Serialize};
+
+use super::sampler::{MutationSettings, PssSampler};
+use crate::film::{Accumulator, Image};
+use crate::integrator::bdpt::{
+    connect_all, evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch,
+    FilmRegion, MisHeuristic, Vertex,
+};
+use crate::integrator::driver::{Driver, Passes};
+use crate::integrator::{settings_from_table, Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
+use crate::sampling::{Distribution1D, Rng};
+use crate::scene::Scene;
+use crate::spectrum::{is_finite, luminance, Rgb};
+use crate::stats::{AcceptanceCount, Counters};
+
+/// Primary-sample streams: camera subpath, light subpath, connection, technique (MMLT's u_t).
+const CAMERA_STREAM: usize = 0;
+const LIGHT_STREAM: usize = 1;
+const CONNECTION_STREAM: usize = 2;
+const TECHNIQUE_STREAM: usize = 3;
+const STREAM_COUNT: usize = 4;
+
+/// Distinguishes the bootstrap's random streams from the render's.
+const BOOTSTRAP_SEED_SALT: u64 = 0xB007_5742_u64;
+/// Distinguishes the chains' own streams (depth choice, acceptance) from the bootstrap's.
+const CHAIN_SEED_SALT: u64 = 0xC4A1_0000_u64;
+
+/// Which of the two methods.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MltVariant {
+    Pssmlt,
+    Mmlt,
+}
+
+/// Settings of `integrator = "pssmlt"` and `"mmlt"` (defaults: the MMLT paper, Sec. 5).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MltSettings {
+    /// Maximum number of scattering events of a path (the paper's L = 8).
+    pub max_depth: u32,
+    /// Uniform samples per path depth used to estimate b_d (the paper's N; 100,000).
+    pub bootstrap: u64,
+    /// Number of independent chains (each holds one sub-chain per depth for MMLT).
+    pub chains: u64,
+    /// Probability of a large step (Kelemen's p_large; 0.3).
+    pub large_step_probability: f64,
+    /// Small-step width in primary sample space (0.01).
+    pub sigma: f64,
+    /// Refine b_d with every large step during the render (large steps are uniform samples, so
+    /// they are extra bootstrap samples for free). On by default: the paper notes it is more
+    /// robust than the one-off bootstrap, and it costs nothing.
+    pub progressive_b: bool,
+    /// MIS heuristic of the technique weights: "balance" (default) or "power".
+    pub mis: MisHeuristic,
+    /// Russian roulette on subpaths after this many bounces (disabled by default: MCMC prefers a
+    /// deterministic path length per state).
+    pub rr_depth: u32,
+    /// MMLT only: write, per technique (s, t), an image of how many iterations that technique was
+    /// the chain's state at each pixel (the paper's Fig. 5) as extra layers.
+    pub technique_count_layers: bool,
+}
+
+impl Default for MltSettings {
+    fn default() -> Self {
+        MltSettings {
+            max_depth: 8,
+            bootstrap: 100_000,
+            chains: 1000,
+            large_step_probability: 0.3,
+            sigma: 0.01,
+            progressive_b: true,
+            mis: MisHeuristic::Balance,
+            rr_depth: u32::MAX,
+            technique_count_layers: false,
+        }
+    }
+}
+
+/// PSSMLT or MMLT.
+#[derive(Clone, Debug)]
+pub struct Mlt {
+    pub variant: MltVariant,
+    pub settings: MltSettings,
+}
+
+/// One contribution of a state to the film.
+#[derive(Clone, Copy, Debug)]
+struct Splat {
+    raster: Vec2,
+    value: Rgb,
+}
+
+/// The contributions of one primary-sample state and its scalar target.
+#[derive(Clone, Debug, Default)]
+struct PathState {
+    splats: Vec<Splat>,
+    target: f32,
+    /// MMLT: the technique (light vertices) of the state.
+    s: usize,
+}
+
+/// A chain for one depth (MMLT) or for all depths (PSSMLT).
+#[derive(Clone, Debug)]
+struct SubChain {
+    sampler: PssSampler,
+    current: PathState,
+}
+
+/// A Markov chain unit: its own random stream (depth choice, acceptance) and its sub-chains.
+struct ChainUnit {
+    rng: Rng,
+    /// Indexed by depth for MMLT (None where b_d = 0); one entry for PSSMLT.
+    subchains: Vec<Option<SubChain>>,
+}
+
+/// Per-slot buffers and statistics.
+struct SlotState {
+    camera: Vec<Vertex>,
+    light: Vec<Vertex>,
+    scratch: ConnectScratch,
+    /// One film per depth (MMLT) or one (PSSMLT).
+    films: Vec<Accumulator>,
+    iterations: Vec<u64>,
+    acceptance: Vec<AcceptanceCount>,
+    nonzero_proposals: u64,
+    /// Per depth: sum and count of large-step targets (for progressive b).
+    large_steps: Vec<(f64, u64)>,
+    /// MMLT: per depth, iterations with each technique s as the state.
+    technique_counts: Vec<Vec<u64>>,
+    /// MMLT with count layers: per (depth, s) an image of state counts.
+    count_films: Option<Vec<Vec<Accumulator>>>,
+}
+
+impl Mlt {
+    pub fn from_params(variant: MltVariant, params: &toml::Table) -> Result<Mlt, RenderError> {
+        let name = match variant {
+            MltVariant::Pssmlt => "pssmlt",
+            MltVariant::Mmlt => "mmlt",
+        };
+        let settings: MltSettings = settings_from_table(name, params)?;
+        let bad = |m: &str| Err(RenderError::Settings(format!("{name}: {m}")));
+        if settings.max_depth == 0 {
+            return bad("max_depth must be at least 1");
+        }
+        if settings.bootstrap == 0 {
+            return bad("bootstrap must be at least 1");
+        }
+        if settings.chains == 0 {
+            return bad("chains must be at least 1");
+        }
+        if !(0.0..=1.0).contains(&settings.large_step_probability) {
+            return bad("large_step_probability must be in [0, 1]");
+        }
+        if !(settings.sigma > 0.0 && settings.sigma.is_finite()) {
+            return bad("sigma must be a positive number");
+        }
+        if settings.mis == MisHeuristic::None {
+            return bad("mis must be \"balance\" or \"power\"");
+        }
+        Ok(Mlt { variant, settings })
+    }
+
+    fn depth_count(&self) -> usize {
+        match self.variant {
+            MltVariant::Pssmlt => 1,
+            MltVariant::Mmlt => self.settings.max_depth as usize + 1,
+        }
+    }
+
+    /// Number of techniques the state's u_t spreads over at depth slot `d`: n_d = d + 2, except
+    /// at depth 0 where (s, t) = (1, 1) is not a BDPT technique (the MIS weights of the others
+    /// already sum to 1 without it), leaving only s = 0, t = 2.
+    fn technique_count(&self, d: usize) -> usize {
+        match self.variant {
+            MltVariant::Pssmlt => 1,
+            MltVariant::Mmlt if d == 0 => 1,
+            MltVariant::Mmlt => d + 2,
+        }
+    }
+
+    fn mutation(&self) -> MutationSettings {
+        MutationSettings { large_step_probability: self.settings.large_step_probability, sigma: self.settings.sigma }
+    }
+
+    /// The bootstrap sampler for sample `i` of depth slot `d`: a fresh chain whose first (large)
+    /// step reproduces the bootstrap path, so a chain can restart from it exactly.
+    fn bootstrap_sampler(&self, seed: u64, d: usize, i: u64) -> PssSampler {
+        let stream = d as u64 * self.settings.bootstrap + i;
+        PssSampler::new(Rng::new(seed ^ BOOTSTRAP_SEED_SALT, stream), self.mutation(), STREAM_COUNT)
+    }
+
+    /// Maps the sampler's current proposal to its contributions (the state's path).
+    fn evaluate(
+        &self,
+        ctx: &BdptContext,
+        d: usize,
+        sampler: &mut PssSampler,
+        slot: &mut SlotState,
+        counters: &mut Counters,
+    ) -> PathState {
+        let mut state = PathState::default();
+        let max_depth = self.settings.max_depth as usize;
+        match self.variant {
+            MltVariant::Pssmlt => {
+                sampler.start_stream(CAMERA_STREAM);
+                let raster = generate_camera_subpath(
+                    ctx,
+                    FilmRegion::WholeFilm,
+                    sampler,
+                    max_depth + 2,
+                    &mut slot.camera,
+                    counters,
+                );
+                sampler.start_stream(LIGHT_STREAM);
+                generate_light_subpath(ctx, sampler, max_depth + 1, &mut slot.light, counters);
+                sampler.start_stream(CONNECTION_STREAM);
+                let splats = &mut state.splats;
+                connect_all(
+                    ctx,
+                    &slot.light,
+                    &slot.camera,
+                    raster,
+                    max_depth,
+                    sampler,
+                    &mut slot.scratch,
+                    counters,
+                    |c, counters| {
+                        let value = c.weighted();
+                        if is_finite(value) {
+                            splats.push(Splat { raster: c.raster, value });
+                        } else {
+                            counters.nonfinite_dropped += 1;
+                        }
+                    },
+                );
+            }
+            MltVariant::Mmlt => {
+                // Alg. 2: t = ⌊n·u_t⌋ in the paper's numbering; here s = ⌊n·u_t⌋ light vertices
+                // and t = n − s camera vertices (t ≥ 1: a pinhole cannot be hit).
+                sampler.start_stream(TECHNIQUE_STREAM);
+                let n = self.technique_count(d);
+                let s = ((sampler.next_1d() * n as f32) as usize).min(n - 1);
+                let t = d + 2 - s;
+                state.s = s;
+                sampler.start_stream(CAMERA_STREAM);
+                let raster =
+                    generate_camera_subpath(ctx, FilmRegion::WholeFilm, sampler, t, &mut slot.camera, counters);
+                sampler.start_stream(LIGHT_STREAM);
+                slot.light.clear();
+                if s > 0 {
+                    generate_light_subpath(ctx, sampler, s, &mut slot.light, counters);
+                }
+                sampler.start_stream(CONNECTION_STREAM);
+                if slot.camera.len() >= t && slot.light.len() >= s {
+                    if let Some(c) = evaluate_technique(
+                        ctx,
+                        &slot.light,
+                        &slot.camera,
+                        s,
+                        t,
+                        raster,
+                        sampler,
+                        &mut slot.scratch,
+                        counters,
+                        None,
+                    ) {
+                        let value = c.weighted();
+                        if is_finite(value) {
+                            state.splats.push(Splat { raster: c.raster, value });
+                        } else {
+                            counters.nonfinite_dropped += 1;
+                        }
+                    }
+                }
+            }
+        }
+        let target: f32 = state.splats.iter().map(|s| luminance(s.value)).sum();
+        state.target = if target.is_finite() && target > 0.0 { target } else { 0.0 };
+        if state.target == 0.0 {
+            state.splats.clear();
+        }
+        state
+    }
+
+    fn new_slot(&self, width: usize, height: usize) -> SlotState {
+        let depths = self.depth_count();
+        SlotState {
+            camera: Vec::new(),
+            light: Vec::new(),
+            scratch: ConnectScratch::default(),
+            films: vec![Accumulator::new(width, height); depths],
+            iterations: vec![0; depths],
+            acceptance: vec![AcceptanceCount::default(); depths],
+            nonzero_proposals: 0,
+            large_steps: vec![(0.0, 0); depths],
+            technique_counts: (0..depths).map(|d| vec![0; self.technique_count(d)]).collect(),
+            count_films: (self.settings.technique_count_layers && self.variant == MltVariant::Mmlt)
+                .then(|| (0..depths).map(|d| vec![Accumulator::new(width, height); self.technique_count(d)]).collect()),
+        }
+    }
+
+    /// One Metropolis iteration of sub-chain `d`.
+    fn iterate(
+        &self,
+        ctx: &BdptContext,
+        d: usize,
+        chain: &mut SubChain,
+        rng: &mut Rng,
+        slot: &mut SlotState,
+        counters: &mut Counters,
+    ) {
+        chain.sampler.start_iteration();
+        let large = chain.sampler.is_large_step();
+        let proposal = self.evaluate(ctx, d, &mut chain.sampler, slot, counters);
+        counters.samples += 1;
+        if large {
+            slot.large_steps[d].0 += proposal.target as f64;
+            slot.large_steps[d].1 += 1;
+        }
+        if proposal.target > 0.0 {
+            slot.nonzero_proposals += 1;
+        }
+        // Eq. 20 (and Alg. 1): a = target(proposal) / target(current). A current state of zero
+        // target (only possible before any light was found) accepts any proposal.
+        let cur = chain.current.target;
+        let a = if cur > 0.0 {
+            (proposal.target / cur).min(1.0)
+        } else if proposal.target > 0.0 {
+            1.0
+        } else {
+            0.0
+        };
+        let film = &mut slot.films[d];
+        if a > 0.0 {
+            let w = a / proposal.target;
+            for sp in &proposal.splats {
+                film.splat(sp.raster, sp.value * w);
+            }
+        }
+        if a < 1.0 && cur > 0.0 {
+            let w = (1.0 - a) / cur;
+            for sp in &chain.current.splats {
+                film.splat(sp.raster, sp.value * w);
+            }
+        }
+        slot.iterations[d] += 1;
+        let strategy = if large { "large_step" } else { "small_step" };
+        let entry = counters.strategies.entry(strategy.to_string()).or_default();
+        entry.proposed += 1;
+        slot.acceptance[d].proposed += 1;
+        let accepted = (rng.uniform() as f32) < a;
+        if accepted {
+            entry.accepted += 1.0;
+            slot.acceptance[d].accepted += 1.0;
+            chain.sampler.accept();
+            chain.current = proposal;
+        } else {
+            chain.sampler.reject();
+        }
+        if self.variant == MltVariant::Mmlt {
+            slot.technique_counts[d][chain.current.s] += 1;
+            if let (Some(films), Some(sp)) = (slot.count_films.as_mut(), chain.current.splats.first()) {
+                films[d][chain.current.s].splat(sp.raster, Rgb::ONE);
+            }
+        }
+    }
+}
+
+impl Integrator for Mlt {
+    fn name(&self) -> &'static str {
+        match self.variant {
+            MltVariant::Pssmlt => "pssmlt",
+            MltVariant::Mmlt => "mmlt",
+        }
+    }
+
+    fn settings_json(&self) -> serde_json::Value {
+        serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
+    }
+
+    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
+        let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
+        let pixels = (width * height) as u64;
+        let driver = Driver::new(job, width as u32, height as u32)?;
+        let rr = if self.settings.rr_depth == u32::MAX { usize::MAX } else { self.settings.rr_depth as usize };
+        let ctx = BdptContext::new(scene, rr, self.settings.mis);
+        let depths = self.depth_count();
+        let n_boot = self.settings.bootstrap;
+
+        // Bootstrap: n_boot uniform samples per depth, in batches over the pool (deterministic:
+        // each sample has its own stream). Each batch keeps its samples' targets.
+        progress.message("bootstrap");
+        const BATCH: u64 = 4096;
+        let batches_per_depth = n_boot.div_ceil(BATCH);
+        let batches: Vec<(usize, u64, Vec<f32>)> =
+            (0..depths).flat_map(|d| (0..batches_per_depth).map(move |b| (d, b, Vec::new()))).collect();
+        let boot = driver.run(
+            batches,
+            Passes::Count(1),
+            progress,
+            |_| self.new_slot(0, 0),
+            |_, (d, b, targets), slot| {
+                let start = *b * BATCH;
+                let end = (start + BATCH).min(n_boot);
+                for i in start..end {
+                    let mut sampler = self.bootstrap_sampler(job.seed, *d, i);
+                    sampler.start_iteration_with(true);
+                    let st = self.evaluate(&ctx, *d, &mut sampler, &mut slot.state, &mut slot.counters);
+                    targets.push(st.target);
+                }
+                0
+            },
+        );
+        let mut boot_targets: Vec<Vec<f32>> = vec![Vec::with_capacity(n_boot as usize); depths];
+        for (d, _, t) in boot.units {
+            boot_targets[d].extend(t);
+        }
+        let boot_sums: Vec<f64> = boot_targets.iter().map(|t| t.iter().map(|&x| x as f64).sum()).collect();
+        let b_boot: Vec<f64> = boot_sums.iter().map(|s| s / n_boot as f64).collect();
+        let b_total: f64 = b_boot.iter().sum();
+
+        let mut warnings: Vec<String> = Vec::new();
+        if !(b_total > 0.0) {
+            warnings.push(format!(
+                "no bootstrap path ({} per depth) carried light to the camera: the image is black. Check that \
+                 emitters are visible from the camera's surroundings, or raise `bootstrap`.",
+                n_boot
+            ));
+            return Ok(RenderOutput {
+                image: Image::new(width, height),
+                layers: Vec::new(),
+                counters: boot.counters,
+                wall_time: boot.elapsed,
+                extra_stats: serde_json::json!({ "warnings": warnings, "b": b_boot, "bootstrap_paths_per_depth": n_boot }),
+            });
+        }
+        let depth_choice = Distribution1D::new(&b_boot.iter().map(|&b| b as f32).collect::<Vec<_>>());
+        let boot_dists: Vec<Option<Distribution1D>> =
+            boot_targets.iter().zip(&b_boot).map(|(t, &b)| (b > 0.0).then(|| Distribution1D::new(t))).collect();
+
+        // Chains: each sub-chain starts from a bootstrap sample chosen ∝ its target (start-up bias
+        // is negligible this way: the start is distributed as the target up to the bootstrap's
+        // finite sample), reproduced exactly from its stream.
+        let mut init_slot = self.new_slot(0, 0);
+        let mut init_counters = Counters::default();
+        let units: Vec<ChainUnit> = (0..self.settings.chains)
+            .map(|c| {
+                let mut rng = Rng::new(job.seed ^ CHAIN_SEED_SALT, c);
+                let subchains = (0..depths)
+                    .map(|d| {
+                        let dist = boot_dists[d].as_ref()?;
+                        let (i, _, _) = dist.sample_discrete(rng.uniform());
+                        let mut sampler = self.bootstrap_sampler(job.seed, d, i as u64);
+                        sampler.start_iteration_with(true);
+                        let current = self.evaluate(&ctx, d, &mut sampler, &mut init_slot, &mut init_counters);
+                        sampler.accept();
+                        Some(SubChain { sampler, current })
+                    })
+                    .collect();
+                ChainUnit { rng, subchains }
+            })
+            .collect();
+
+        // Budget: one pass is about one mutation per pixel over all chains.
+        let segment = pixels.div_ceil(self.settings.chains).max(1);
+        let per_pass = segment * self.settings.chains;
+        let passes = match job.budget {
+            Budget::SamplesPerPixel(mpp) => {
+                let total = mpp * pixels;
+                progress.set_total(total.div_ceil(per_pass) * per_pass);
+                Passes::Count(total.div_ceil(per_pass))
+            }
+            Budget::Seconds(s) => Passes::Seconds(s),
+        };
+        progress.message("mutating");
+        let out = driver.run(
+            units,
+            passes,
+            progress,
+            |_| self.new_slot(width, height),
+            |_, unit, slot| {
+                let state = &mut slot.state;
+                let counters = &mut slot.counters;
+                for _ in 0..segment {
+                    let d = if depths == 1 { 0 } else { depth_choice.sample_discrete(unit.rng.uniform()).0 };
+                    if let Some(chain) = unit.subchains[d].as_mut() {
+                        self.iterate(&ctx, d, chain, &mut unit.rng, state, counters);
+                    }
+                }
+                if slot.index == 0 {
+                    let acc: AcceptanceCount = state.acceptance.iter().fold(AcceptanceCount::default(), |mut a, b| {
+                        a.merge(b);
+                        a
+                    });
+                    progress.message(&format!("acceptance {:.1}%", 100.0 * acc.rate()));
+                }
+                segment
+            },
+        );
+
+        // Merge the slots in slot order (deterministic) and normalise each depth.
+        let mut slots = out.slot_states.into_iter();
+        let Some(mut merged) = slots.next() else {
+            return Err(RenderError::Settings("no worker ran".into()));
+        };
+        for s in slots {
+            for d in 0..depths {
+                merged.films[d].merge(&s.films[d]);
+                merged.iterations[d] += s.iterations[d];
+                merged.acceptance[d].merge(&s.acceptance[d]);
+                merged.large_steps[d].0 += s.large_steps[d].0;
+                merged.large_steps[d].1 += s.large_steps[d].1;
+                for (a, b) in merged.technique_counts[d].iter_mut().zip(&s.technique_counts[d]) {
+                    *a += b;
+                }
+                if let (Some(m), Some(o)) = (merged.count_films.as_mut(), s.count_films.as_ref()) {
+                    for (a, b) in m[d].iter_mut().zip(&o[d]) {
+                        a.merge(b);
+                    }
+                }
+            }
+            merged.nonzero_proposals += s.nonzero_proposals;
+        }
+        let b_final: Vec<f64> = (0..depths)
+            .map(|d| {
+                let (sum, n) = merged.large_steps[d];
+                if self.settings.progressive_b {
+                    (boot_sums[d] + sum) / (n_boot + n) as f64
+                } else {
+                    b_boot[d]
+                }
+            })
+            .collect();
+        let mut total = Accumulator::new(width, height);
+        for d in 0..depths {
+            let iters = merged.iterations[d];
+            if iters == 0 {
+                continue;
+            }
+            let scale = self.technique_count(d) as f64 * b_final[d] * pixels as f64 / iters as f64;
+            total.merge_scaled(&merged.films[d], scale);
+        }
+        let image = total.to_image(1.0);
+
+        let mut layers = Vec::new();
+        if let Some(films) = merged.count_films.as_ref() {
+            for (d, per_s) in films.iter().enumerate() {
+                for (s, f) in per_s.iter().enumerate() {
+                    layers.push((format!("count.d{d}.s{s}t{}", d + 2 - s), f.to_image(1.0)));
+                }
+            }
+        }
+        let proposals: u64 = merged.acceptance.iter().map(|a| a.proposed).sum();
+        let accepted: f64 = merged.acceptance.iter().map(|a| a.accepted).sum();
+        let effective_path_ratio = if proposals > 0 { merged.nonzero_proposals as f64 / proposals as f64 } else { 0.0 };
+        let per_depth: Vec<serde_json::Value> = (0..depths)
+            .map(|d| {
+                serde_json::json!({
+                    "depth": if depths == 1 { serde_json::Value::Null } else { d.into() },
+                    "b_bootstrap": b_boot[d],
+                    "b": b_final[d],
+                    "iterations": merged.iterations[d],
+                    "acceptance": merged.acceptance[d].rate(),
+                    "technique_state_counts": if self.variant == MltVariant::Mmlt {
+                        serde_json::json!(merged.technique_counts[d]
+                            .iter()
+                            .enumerate()
+                            .map(|(s, c)| serde_json::json!({"s": s, "t": d + 2 - s, "iterations": c}))
+                            .collect::<Vec<_>>())
+                    } else {
+                        serde_json::Value::Null
+                    },
+                })
+            })
+            .collect();
+        let mut counters = out.counters;
+        counters.merge(&boot.counters);
+        counters.merge(&init_counters);
+        Ok(RenderOutput {
+            image,
+            layers,
+            counters,
+            wall_time: boot.elapsed + out.elapsed,
+            extra_stats: serde_json::json!({
+                "mutations": proposals,
+                "mutations_per_pixel": proposals as f64 / pixels as f64,
+                "passes": out.passes,
+                "segment_length": segment,
+                "bootstrap_paths_per_depth": n_boot,
+                "bootstrap_seconds": boot.elapsed.as_secs_f64(),
+                "acceptance": if proposals > 0 { accepted / proposals as f64 } else { 0.0 },
+                "effective_path_ratio": effective_path_ratio,
+                "per_depth": per_depth,
+                "warnings": warnings,
+            }),
+        })
+    }
+}

@@ -1,0 +1,183 @@
+//! PSSMLT and MMLT against closed forms and the path tracer.
+//!
+//! # Why the brightness is testable
+//! With expected-value splatting every iteration deposits exactly one unit of luminance weight, so
+//! an MLT image's mean luminance is Σ_d n_d·b_d: its error is the error of the normalisation b
+//! (bootstrap plus, with progressive b, every large step), which is where MLT renderers go wrong
+//! in brightness. Independent renders (different seeds) therefore measure the normaliser's
+//! variance directly, and the tests use them the same way as tests/bdpt.rs: K renders per
+//! integrator, luminance means of 16 regions and of the whole image, Welch's z against the path
+//! tracer, |z| < 5 (Bonferroni over 17 comparisons at family-wise level ~1e-3 for the t
+//! distribution with ≥ 15 degrees of freedom), with a power check that a 5% brightness error
+//! would stand out.
+
+use std::path::Path;
+
+use plexus::camera::Camera;
+use plexus::film::Image;
+use plexus::integrator::{create, Budget, NoProgress, RenderJob};
+use plexus::scene::{load_scene, Scene};
+use plexus::spectrum::luminance;
+use plexus::stats::Counters;
+
+const RENDERS: u64 = 16;
+const GRID: usize = 4;
+const Z_CRITICAL: f64 = 5.0;
+/// MLT parameters for the tests: the paper's mutation settings, fewer bootstrap samples and
+/// chains than the defaults so that 16 renders of a 32×32 image stay within seconds.
+const MLT_PARAMS: &str = "max_depth = 8\nbootstrap = 10000\nchains = 256";
+
+fn scene(name: &str, size: u32) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));
+    let mut scene = load_scene(&path, None).unwrap_or_else(|e| panic!("{}: {e}", path.display())).scene;
+    let c = &scene.camera;
+    if size > 0 {
+        scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, size, size);
+    }
+    scene
+}
+
+fn render(scene: &Scene, integrator: &str, params: &str, spp: u64, seed: u64) -> (Image, Counters, serde_json::Value) {
+    let params: toml::Table = toml::from_str(params).expect("test parameters");
+    let integrator = create(integrator, &params).expect("integrator");
+    let job = RenderJob { budget: Budget::SamplesPerPixel(spp), seed, threads: 2 };
+    let out = integrator.render(scene, &job, &NoProgress).expect("render");
+    (out.image, out.counters, out.extra_stats)
+}
+
+fn region_means(image: &Image) -> Vec<f64> {
+    let mut sums = [0.0f64; GRID * GRID + 1];
+    let mut counts = [0usize; GRID * GRID + 1];
+    for y in 0..image.height {
+        for x in 0..image.width {
+            let v = luminance(image.get(x, y)) as f64;
+            let r = (y * GRID / image.height) * GRID + x * GRID / image.width;
+            sums[r] += v;
+            counts[r] += 1;
+            sums[GRID * GRID] += v;
+            counts[GRID * GRID] += 1;
+        }
+    }
+    sums.iter().zip(&counts).map(|(s, &c)| s / c.max(1) as f64).collect()
+}
+
+/// Per-region mean and variance of the mean over `RENDERS` seeds.
+fn estimate(scene: &Scene, integrator: &str, params: &str, spp: u64) -> (Vec<f64>, Vec<f64>) {
+    let samples: Vec<Vec<f64>> = (1..=RENDERS)
+        .map(|seed| {
+            let (img, counters, _) = render(scene, integrator, params, spp, seed * 7919 + 3);
+            assert!(img.all_finite(), "{integrator}: non-finite pixels");
+            assert_eq!(counters.nonfinite_dropped, 0, "{integrator}: non-finite contributions");
+            region_means(&img)
+        })
+        .collect();
+    let k = RENDERS as f64;
+    let n = samples[0].len();
+    let mut means = vec![0.0; n];
+    let mut var_of_mean = vec![0.0; n];
+    for r in 0..n {
+        let m = samples.iter().map(|s| s[r]).sum::<f64>() / k;
+        means[r] = m;
+        var_of_mean[r] = samples.iter().map(|s| (s[r] - m).powi(2)).sum::<f64>() / (k - 1.0) / k;
+    }
+    (means, var_of_mean)
+}
+
+fn assert_agree(what: &str, (ma, va): (Vec<f64>, Vec<f64>), (mb, vb): (Vec<f64>, Vec<f64>)) {
+    let image = GRID * GRID;
+    let se = (va[image] + vb[image]).sqrt();
+    assert!(0.05 * mb[image] > Z_CRITICAL * se, "{what}: too weak (mean {:.5}, se {se:.5})", mb[image]);
+    let mut worst = 0.0f64;
+    let mut report = String::new();
+    for r in 0..=image {
+        let se = (va[r] + vb[r]).sqrt();
+        let z = if se > 0.0 {
+            (ma[r] - mb[r]) / se
+        } else if ma[r] == mb[r] {
+            0.0
+        } else {
+            f64::INFINITY
+        };
+        worst = worst.max(z.abs());
+        report += &format!("  region {r:2}: {:.5} vs {:.5}  z = {z:+.2}\n", ma[r], mb[r]);
+    }
+    println!("{what}: worst |z| = {worst:.2}\n{report}");
+    assert!(worst < Z_CRITICAL, "{what}: disagreement (|z| = {worst:.2})\n{report}");
+}
+
+fn mlt_agrees_with_pt(name: &str) {
+    let scene = scene(name, 32);
+    let pt = estimate(&scene, "pt", "max_depth = 8", 256);
+    for method in ["pssmlt", "mmlt"] {
+        let mlt = estimate(&scene, method, MLT_PARAMS, 256);
+        assert_agree(&format!("{method} vs pt on {name}"), mlt, pt.clone());
+    }
+}
+
+#[test]
+fn mlt_agrees_with_pt_on_cornell_box() {
+    mlt_agrees_with_pt("cornell-box");
+}
+
+#[test]
+fn mlt_agrees_with_pt_on_cornell_glossy() {
+    mlt_agrees_with_pt("cornell-glossy");
+}
+
+/// scenes/furnace.toml: L = Le (1 − ρ^(d+1)) / (1 − ρ) with paths cut after d bounces (the file's
+/// header). Each method's image mean must be within 2% of it in every render, and the spread
+/// over 4 seeds must show the 2% test has power (standard error of one render < 0.4%).
+#[test]
+fn mlt_reproduces_the_furnace_closed_form() {
+    let scene = scene("furnace", 0);
+    let (le, rho, depth) = (0.5f64, 0.5f64, 12i32);
+    let expected = le * (1.0 - rho.powi(depth + 1)) / (1.0 - rho);
+    for method in ["pssmlt", "mmlt"] {
+        let params = format!("max_depth = {depth}\nbootstrap = 20000\nchains = 256");
+        let means: Vec<f64> = (1..=4)
+            .map(|seed| {
+                let (img, counters, stats) = render(&scene, method, &params, 64, seed);
+                assert_eq!(counters.nonfinite_dropped, 0);
+                let m = img.mean()[0];
+                println!("{method} seed {seed}: mean {m:.5} (expected {expected:.5}), stats {stats}");
+                assert!((m - expected).abs() < 0.02 * expected, "{method}: furnace mean {m} vs closed form {expected}");
+                m
+            })
+            .collect();
+        let mean = means.iter().sum::<f64>() / 4.0;
+        let sd = (means.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / 3.0).sqrt();
+        assert!(sd < 0.004 * expected, "{method}: furnace spread {sd} too large for a 2% test");
+    }
+}
+
+/// A black scene (no bootstrap path carries light) renders black with a warning, never NaN.
+#[test]
+fn mlt_on_a_scene_without_light_is_black_with_a_warning() {
+    let mut scene = scene("cornell-box", 16);
+    for shape in &mut scene.shapes {
+        shape.light = None;
+    }
+    for method in ["pssmlt", "mmlt"] {
+        let (img, _, stats) = render(&scene, method, "bootstrap = 1000\nchains = 16", 4, 1);
+        assert!(img.pixels.iter().all(|p| *p == glam::Vec3::ZERO), "{method}: not black");
+        let warnings = stats["warnings"].as_array().expect("warnings list");
+        assert!(!warnings.is_empty(), "{method}: no warning");
+    }
+}
+
+/// The same seed and thread count give a bit-identical MMLT image; another seed does not.
+#[test]
+fn mlt_is_deterministic() {
+    let scene = scene("cornell-box", 16);
+    for method in ["pssmlt", "mmlt"] {
+        let a = render(&scene, method, "bootstrap = 2000\nchains = 32", 8, 5).0;
+        let b = render(&scene, method, "bootstrap = 2000\nchains = 32", 8, 5).0;
+        let c = render(&scene, method, "bootstrap = 2000\nchains = 32", 8, 6).0;
+        assert!(a
+            .pixels
+            .iter()
+            .zip(&b.pixels)
+            .all(|(x, y)| x.to_array().map(f32::to_bits) == y.to_array().map(f32::to_bits)));
+        assert_ne!(a.pixels, c.pixels);
+    }
+}
