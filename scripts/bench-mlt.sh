@@ -1,0 +1,89 @@
+#!/usr/bin/env bash
+# PSSMLT against MMLT on the door scene (scenes/veach-ajar.toml) at an equal time budget, one render
+# each with the same seed and thread count; prints a Markdown table of the statistics the renderer
+# writes to <out>.json (integrator_stats): mutations, mutations/s, acceptance, effective path ratio
+# (the fraction of proposals with non-zero contribution; MMLT paper, Sec. 5: 11.81% PSSMLT against
+# 29.75% MMLT) and bootstrap time.
+#
+# Usage: scripts/bench-mlt.sh [SCENE]
+# Environment (defaults in brackets):
+#   PLEXUS     binary              [$CARGO_TARGET_DIR/release/plexus, else target/release/plexus]
+#   TIME       seconds per method  [60]
+#   THREADS    render threads      [2]
+#   SEED       seed                [1]
+#   BOOTSTRAP  bootstrap paths per depth, passed as --set bootstrap=N [unset: the default 100000]
+#   OUTDIR     where images and JSON go [/tmp/bench-mlt]
+set -euo pipefail
+
+scene=${1:-scenes/veach-ajar.toml}
+time_budget=${TIME:-60}
+threads=${THREADS:-2}
+seed=${SEED:-1}
+outdir=${OUTDIR:-/tmp/bench-mlt}
+if [[ -n "${PLEXUS:-}" ]]; then
+    plexus=$PLEXUS
+elif [[ -n "${CARGO_TARGET_DIR:-}" ]]; then
+    plexus=$CARGO_TARGET_DIR/release/plexus
+else
+    plexus=target/release/plexus
+fi
+if [[ ! -x "$plexus" ]]; then
+    echo "bench-mlt: no plexus binary at '$plexus' (build with 'cargo build --release' or set PLEXUS)" >&2
+    exit 1
+fi
+if [[ ! -f "$scene" ]]; then
+    echo "bench-mlt: scene '$scene' not found" >&2
+    exit 1
+fi
+mkdir -p "$outdir"
+
+extra=()
+if [[ -n "${BOOTSTRAP:-}" ]]; then
+    extra+=(--set "bootstrap=$BOOTSTRAP")
+fi
+
+for method in pssmlt mmlt; do
+    cmd=("$plexus" render "$scene" --integrator "$method" --time "$time_budget" --threads "$threads"
+        --seed "$seed" --out "$outdir/$method.exr" "${extra[@]}")
+    echo "bench-mlt: ${cmd[*]}" >&2
+    "${cmd[@]}" >&2
+done
+
+python3 - "$outdir" <<'PY'
+import json, sys, os
+
+outdir = sys.argv[1]
+rows = []
+depth_lines = []
+for method in ("pssmlt", "mmlt"):
+    with open(os.path.join(outdir, method + ".json")) as f:
+        doc = json.load(f)
+    st = doc.get("integrator_stats", {})
+    muts = st["mutations"]
+    boot = st["bootstrap_seconds"]
+    wall = doc.get("wall_time_s")
+    # Mutations per second of chain time: the render's wall time minus the bootstrap.
+    chain_s = (wall - boot) if isinstance(wall, (int, float)) and wall > boot else None
+    rate = muts / chain_s if chain_s else float("nan")
+    rows.append((method.upper() if method == "mmlt" else "PSSMLT", muts, rate, st["acceptance"],
+                 st["effective_path_ratio"], boot, st.get("bootstrap_paths_per_depth")))
+    if method == "mmlt":
+        for d in st["per_depth"]:
+            counts = d.get("technique_state_counts") or []
+            total = sum(c["iterations"] for c in counts) or 1
+            parts = ", ".join("s%d t%d %.1f%%" % (c["s"], c["t"], 100.0 * c["iterations"] / total) for c in counts)
+            depth_lines.append("| %s | %d | %.3g | %.3g | %.1f%% | %s |" % (
+                d["depth"], d["iterations"], d["b_bootstrap"], d["b"], 100.0 * d["acceptance"], parts))
+
+print("| method | mutations | mutations/s | acceptance | effective path ratio | bootstrap (paths/depth, s) |")
+print("| --- | ---: | ---: | ---: | ---: | ---: |")
+for name, muts, rate, acc, epr, boot, n in rows:
+    print("| %s | %d | %.3g | %.2f%% | %.2f%% | %s, %.2f s |" % (name, muts, rate, 100 * acc, 100 * epr, n, boot))
+print()
+print("MMLT per depth (d = scattering events; technique share = fraction of iterations the state used (s, t)):")
+print()
+print("| depth | iterations | b (bootstrap) | b (final) | acceptance | technique share |")
+print("| ---: | ---: | ---: | ---: | ---: | --- |")
+for line in depth_lines:
+    print(line)
+PY
