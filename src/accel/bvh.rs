@@ -336,7 +336,7 @@ mod tests {
                 let [a, b, c] = m.triangle(prim);
                 let t_max = best.map_or(ray.t_max, |h| h.t);
                 if let Some((t, b1, b2)) = intersect_triangle(&pre, a, b, c, ray.t_min, t_max) {
-                    if best.map_or(true, |h| t < h.t) {
+                    if best.is_none_or(|h| t < h.t) {
                         best = Some(Hit { t, geom_id: g as u32, prim_id: prim, b1, b2 });
                     }
                 }
@@ -358,7 +358,7 @@ mod tests {
     #[test]
     fn icosphere_is_watertight_at_vertices_and_edges() {
         let sphere = icosphere(4);
-        let bvh = Bvh::build(&[sphere.clone()]);
+        let bvh = Bvh::build(std::slice::from_ref(&sphere));
         let p = sphere.positions();
         let mut targets: Vec<Vec3> = p.to_vec();
         for [a, b, c] in sphere.indices() {
@@ -471,7 +471,7 @@ mod tests {
     #[test]
     fn tree_invariants_hold() {
         let sphere = icosphere(5); // 20480 triangles: exercises the parallel build
-        let bvh = Bvh::build(&[sphere.clone()]);
+        let bvh = Bvh::build(std::slice::from_ref(&sphere));
         assert_eq!(bvh.triangle_count(), sphere.triangle_count());
         let mut seen = vec![false; bvh.triangle_count()];
         let mut stack = vec![(0usize, 0usize)];
@@ -488,9 +488,10 @@ mod tests {
                 }
             } else {
                 assert!(n.count as usize <= BuildParams::default().max_leaf);
-                for k in n.offset as usize..(n.offset + n.count as u32) as usize {
-                    assert!(!seen[k], "triangle {k} in two leaves");
-                    seen[k] = true;
+                let range = n.offset as usize..(n.offset + n.count as u32) as usize;
+                for (k, seen_k) in seen[range.clone()].iter_mut().enumerate().map(|(j, s)| (range.start + j, s)) {
+                    assert!(!*seen_k, "triangle {k} in two leaves");
+                    *seen_k = true;
                     for v in bvh.triangles[k] {
                         assert!(v.cmpge(n.min).all() && v.cmple(n.max).all());
                     }
@@ -500,7 +501,7 @@ mod tests {
             }
         }
         assert!(seen.iter().all(|&s| s), "every triangle in a leaf");
-        assert!(max_depth < MAX_DEPTH && max_depth < 40, "depth {max_depth}");
+        assert!(max_depth < 40, "depth {max_depth} (the bound is {MAX_DEPTH})");
         // Every node is reachable: no holes left after compaction.
         assert!(bvh.node_count() < 2 * bvh.triangle_count());
         assert!(bvh.memory_bytes() >= bvh.node_count() * 32 + bvh.triangle_count() * 44);
@@ -514,7 +515,7 @@ mod tests {
         assert!(empty.intersect(&ray).is_none() && !empty.occluded(&ray));
         // Only zero-area triangles.
         let flat = mesh(vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0], vec![[0, 1, 2], [0, 0, 0]]);
-        let bvh = Bvh::build(&[flat.clone()]);
+        let bvh = Bvh::build(std::slice::from_ref(&flat));
         assert_eq!(bvh.triangle_count(), 0);
         assert!(bvh.intersect(&Ray::new(Vec3::new(1.0, 0.0, 1.0), -Vec3::Z)).is_none());
         // Many coincident triangles (all centroids equal): the build must still split them.

@@ -45,7 +45,7 @@ fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
 }
 
 pub fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
-    if args.threads.iter().any(|&t| t == 0) {
+    if args.threads.contains(&0) {
         return Err(super::bad_input("--threads: thread counts must be at least 1"));
     }
     let opts = BenchOptions {

@@ -181,7 +181,7 @@ struct Split {
 fn best_split(bins: &Bins, parent_area: f32, centroid_extent: Vec3, params: &BuildParams) -> Option<Split> {
     let mut best: Option<Split> = None;
     for (axis, axis_bins) in bins.iter().enumerate() {
-        if !(centroid_extent[axis] > 0.0) {
+        if centroid_extent[axis].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             continue;
         }
         // right_cost[i] = A_R · N_R for the right side made of bins i..BINS.
@@ -204,7 +204,7 @@ fn best_split(bins: &Bins, parent_area: f32, centroid_extent: Vec3, params: &Bui
                 continue;
             }
             let cost = params.traversal_cost + (acc.surface_area() * left_count as f32 + right_cost[i]) / parent_area;
-            if best.as_ref().map_or(true, |b| cost < b.cost) {
+            if best.as_ref().is_none_or(|b| cost < b.cost) {
                 best = Some(Split { axis, bin: i, cost });
             }
         }
