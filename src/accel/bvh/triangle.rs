@@ -163,6 +163,23 @@ pub fn intersect_triangle_k<const KZ: usize>(
     if !(t >= t_min && t <= t_max) {
         return None;
     }
+    // Reject hits whose t is not provably positive: without this, a ray spawned from a surface can
+    // re-hit that surface at t ≈ 1e-6 (seen as false shadow-ray occlusion on the Cornell box's
+    // walls, where Embree reported none). δt bounds the rounding error of t from the magnitudes
+    // of the transformed vertices and edge functions (pbrt-v4 Sec. 6.8.4, "Conservative
+    // ray–triangle t").
+    let max_zt = az.abs().max(bz.abs()).max(cz.abs()) * sz.abs();
+    let max_xt = ax.abs().max(bx.abs()).max(cx.abs());
+    let max_yt = ay.abs().max(by.abs()).max(cy.abs());
+    let delta_z = gamma(3) * max_zt;
+    let delta_x = gamma(5) * (max_xt + max_zt);
+    let delta_y = gamma(5) * (max_yt + max_zt);
+    let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let max_e = u.abs().max(v.abs()).max(w.abs());
+    let delta_t = 3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+    if t <= delta_t {
+        return None;
+    }
     Some((t, v * inv_det, w * inv_det))
 }
 
