@@ -59,6 +59,9 @@ for method in ("pssmlt", "mmlt"):
     with open(os.path.join(outdir, method + ".json")) as f:
         doc = json.load(f)
     st = doc.get("integrator_stats", {})
+    if "mutations" not in st:
+        # A black scene (no bootstrap path carried light) stops after the bootstrap.
+        sys.exit("bench-mlt: %s rendered no chains: %s" % (method, "; ".join(st.get("warnings", []))))
     muts = st["mutations"]
     boot = st["bootstrap_seconds"]
     wall = doc.get("wall_time_s")
