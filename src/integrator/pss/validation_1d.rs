@@ -102,6 +102,19 @@ impl Techniques {
         self.pdf(i, x) / total
     }
 
+    /// The technique i chosen with probability w_i(x) by the uniform `g` (the stationary technique
+    /// law, and Eq. 33's optimal jump proposal T(i→j) = w_j).
+    pub fn choose_by_mis_weight(&self, x: f64, g: f64) -> usize {
+        let mut acc = 0.0;
+        for i in 0..TECHNIQUES {
+            acc += self.mis_weight(i, x);
+            if g < acc {
+                return i;
+            }
+        }
+        TECHNIQUES - 1
+    }
+
     /// Target of state (u, i) in primary sample space: ŵ_i Ĉ_i = w_i(x) f(x) / p_i(x).
     pub fn state_target(&self, i: usize, u: [f64; 2]) -> (f64, f64) {
         let x = self.sample(i, u);
@@ -222,16 +235,7 @@ pub fn exact_state(t: &Techniques, mut uniform: impl FnMut() -> f64) -> ChainSta
             break x;
         }
     };
-    let g = uniform();
-    let mut acc = 0.0;
-    let mut technique = TECHNIQUES - 1;
-    for i in 0..TECHNIQUES {
-        acc += t.mis_weight(i, x);
-        if g < acc {
-            technique = i;
-            break;
-        }
-    }
+    let technique = t.choose_by_mis_weight(x, uniform());
     let inv = t
         .invert(technique, x, [uniform(), uniform(), uniform()], AmbiguityHandling::Uniform)
         .expect("every technique can produce every x in (0,1)");
@@ -292,16 +296,7 @@ pub fn run_chain(
         }
         // Technique jump: j with probability w_j(x) (Eq. 33's optimal proposal).
         let x = state.x;
-        let g = uniform();
-        let mut acc = 0.0;
-        let mut j = TECHNIQUES - 1;
-        for k in 0..TECHNIQUES {
-            acc += t.mis_weight(k, x);
-            if g < acc {
-                j = k;
-                break;
-            }
-        }
+        let j = t.choose_by_mis_weight(x, uniform());
         let handling =
             if variant == Variant::JumpFixedPoint { AmbiguityHandling::Midpoint } else { AmbiguityHandling::Uniform };
         let Some(inv) = t.invert(j, x, [uniform(), uniform(), uniform()], handling) else {
