@@ -18,6 +18,9 @@
 
 use std::path::Path;
 
+mod common;
+use common::agreement::{assert_agree, estimate};
+
 use plexus::camera::Camera;
 use plexus::film::Image;
 use plexus::integrator::bdpt::path::{full_path, split_path, technique_can_sample, technique_weight};
@@ -32,11 +35,6 @@ use plexus::scene::Scene;
 use plexus::spectrum::{is_black, luminance};
 use plexus::stats::Counters;
 
-const RENDERS: u64 = 16;
-const GRID: usize = 4;
-/// |z| above this fails (see the module documentation).
-const Z_CRITICAL: f64 = 5.0;
-
 fn scene(name: &str, width: u32, height: u32) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));
     let mut scene = load_scene(&path, None).unwrap_or_else(|e| panic!("{}: {e}", path.display())).scene;
@@ -45,87 +43,10 @@ fn scene(name: &str, width: u32, height: u32) -> Scene {
     scene
 }
 
-fn render(scene: &Scene, integrator: &str, params: &str, spp: u64, seed: u64) -> (Image, Counters) {
-    let params: toml::Table = toml::from_str(params).expect("test parameters");
-    let integrator = create(integrator, &params).expect("integrator");
-    let job = RenderJob { budget: Budget::SamplesPerPixel(spp), seed, threads: 2 };
-    let out = integrator.render(scene, &job, &NoProgress).expect("render");
-    (out.image, out.counters)
-}
-
-/// Luminance means of the GRID×GRID regions, then of the whole image.
-fn region_means(image: &Image) -> Vec<f64> {
-    let mut sums = [0.0f64; GRID * GRID + 1];
-    let mut counts = [0usize; GRID * GRID + 1];
-    for y in 0..image.height {
-        for x in 0..image.width {
-            let v = luminance(image.get(x, y)) as f64;
-            let r = (y * GRID / image.height) * GRID + x * GRID / image.width;
-            sums[r] += v;
-            counts[r] += 1;
-            sums[GRID * GRID] += v;
-            counts[GRID * GRID] += 1;
-        }
-    }
-    sums.iter().zip(&counts).map(|(s, &c)| s / c.max(1) as f64).collect()
-}
-
-/// Mean and variance of the mean, per region, over `RENDERS` independent renders.
-fn estimate(scene: &Scene, integrator: &str, params: &str, spp: u64) -> (Vec<f64>, Vec<f64>) {
-    let samples: Vec<Vec<f64>> = (1..=RENDERS)
-        .map(|seed| {
-            let (img, counters) = render(scene, integrator, params, spp, seed * 7919 + 1);
-            assert!(img.all_finite(), "{integrator}: non-finite pixels");
-            assert_eq!(counters.nonfinite_dropped, 0, "{integrator}: non-finite contributions");
-            region_means(&img)
-        })
-        .collect();
-    let k = RENDERS as f64;
-    let n = samples[0].len();
-    let mut means = vec![0.0; n];
-    let mut var_of_mean = vec![0.0; n];
-    for r in 0..n {
-        let m = samples.iter().map(|s| s[r]).sum::<f64>() / k;
-        let v = samples.iter().map(|s| (s[r] - m).powi(2)).sum::<f64>() / (k - 1.0);
-        means[r] = m;
-        var_of_mean[r] = v / k;
-    }
-    (means, var_of_mean)
-}
-
-fn assert_agree(what: &str, a: (Vec<f64>, Vec<f64>), b: (Vec<f64>, Vec<f64>)) {
-    let image = GRID * GRID;
-    let (ma, va) = a;
-    let (mb, vb) = b;
-    // Power: a 5% error of the image mean must stand out by more than the critical value.
-    let se = (va[image] + vb[image]).sqrt();
-    assert!(
-        0.05 * mb[image] > Z_CRITICAL * se,
-        "{what}: the test is too weak (image mean {:.5}, standard error {se:.5})",
-        mb[image]
-    );
-    let mut report = String::new();
-    let mut worst = 0.0f64;
-    for r in 0..=image {
-        let se = (va[r] + vb[r]).sqrt();
-        let z = if se > 0.0 {
-            (ma[r] - mb[r]) / se
-        } else if ma[r] == mb[r] {
-            0.0
-        } else {
-            f64::INFINITY
-        };
-        worst = worst.max(z.abs());
-        report += &format!("  region {r:2}: {:.5} vs {:.5}  z = {z:+.2}\n", ma[r], mb[r]);
-    }
-    println!("{what}: worst |z| = {worst:.2}\n{report}");
-    assert!(worst < Z_CRITICAL, "{what}: disagreement (|z| = {worst:.2} ≥ {Z_CRITICAL})\n{report}");
-}
-
 fn bdpt_agrees_with_pt(name: &str, size: u32, spp_pt: u64, spp_bdpt: u64) {
     let scene = scene(name, size, size);
-    let pt = estimate(&scene, "pt", "max_depth = 8", spp_pt);
-    let bdpt = estimate(&scene, "bdpt", "max_depth = 8", spp_bdpt);
+    let pt = estimate(&scene, "pt", "max_depth = 8", spp_pt, 1);
+    let bdpt = estimate(&scene, "bdpt", "max_depth = 8", spp_bdpt, 1);
     assert_agree(&format!("bdpt vs pt on {name}"), bdpt, pt);
 }
 
@@ -154,16 +75,16 @@ fn bdpt_agrees_with_pt_on_environment() {
 #[test]
 fn bdpt_power_heuristic_agrees_with_pt_on_cornell_box() {
     let scene = scene("cornell-box", 32, 32);
-    let pt = estimate(&scene, "pt", "max_depth = 8", 32);
-    let bdpt = estimate(&scene, "bdpt", "max_depth = 8\nmis = \"power\"", 8);
+    let pt = estimate(&scene, "pt", "max_depth = 8", 32, 1);
+    let bdpt = estimate(&scene, "bdpt", "max_depth = 8\nmis = \"power\"", 8, 1);
     assert_agree("bdpt (power) vs pt on cornell-box", bdpt, pt);
 }
 
 #[test]
 fn light_tracing_agrees_with_pt_on_cornell_box() {
     let scene = scene("cornell-box", 32, 32);
-    let pt = estimate(&scene, "pt", "max_depth = 8", 32);
-    let light = estimate(&scene, "light", "max_depth = 8", 32);
+    let pt = estimate(&scene, "pt", "max_depth = 8", 32, 1);
+    let light = estimate(&scene, "light", "max_depth = 8", 32, 1);
     assert_agree("light vs pt on cornell-box", light, pt);
 }
 

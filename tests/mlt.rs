@@ -13,16 +13,15 @@
 
 use std::path::Path;
 
+mod common;
+use common::agreement::{assert_agree, estimate};
+
 use plexus::camera::Camera;
 use plexus::film::Image;
 use plexus::integrator::{create, Budget, NoProgress, RenderJob};
 use plexus::scene::{load_scene, Scene};
-use plexus::spectrum::luminance;
 use plexus::stats::Counters;
 
-const RENDERS: u64 = 16;
-const GRID: usize = 4;
-const Z_CRITICAL: f64 = 5.0;
 /// MLT parameters for the tests: the paper's mutation settings, fewer bootstrap samples and
 /// chains than the defaults so that 16 renders of a 32×32 image stay within seconds.
 const MLT_PARAMS: &str = "max_depth = 8\nbootstrap = 10000\nchains = 256";
@@ -45,70 +44,10 @@ fn render(scene: &Scene, integrator: &str, params: &str, spp: u64, seed: u64) ->
     (out.image, out.counters, out.extra_stats)
 }
 
-fn region_means(image: &Image) -> Vec<f64> {
-    let mut sums = [0.0f64; GRID * GRID + 1];
-    let mut counts = [0usize; GRID * GRID + 1];
-    for y in 0..image.height {
-        for x in 0..image.width {
-            let v = luminance(image.get(x, y)) as f64;
-            let r = (y * GRID / image.height) * GRID + x * GRID / image.width;
-            sums[r] += v;
-            counts[r] += 1;
-            sums[GRID * GRID] += v;
-            counts[GRID * GRID] += 1;
-        }
-    }
-    sums.iter().zip(&counts).map(|(s, &c)| s / c.max(1) as f64).collect()
-}
-
-/// Per-region mean and variance of the mean over `RENDERS` seeds.
-fn estimate(scene: &Scene, integrator: &str, params: &str, spp: u64) -> (Vec<f64>, Vec<f64>) {
-    let samples: Vec<Vec<f64>> = (1..=RENDERS)
-        .map(|seed| {
-            let (img, counters, _) = render(scene, integrator, params, spp, seed * 7919 + 3);
-            assert!(img.all_finite(), "{integrator}: non-finite pixels");
-            assert_eq!(counters.nonfinite_dropped, 0, "{integrator}: non-finite contributions");
-            region_means(&img)
-        })
-        .collect();
-    let k = RENDERS as f64;
-    let n = samples[0].len();
-    let mut means = vec![0.0; n];
-    let mut var_of_mean = vec![0.0; n];
-    for r in 0..n {
-        let m = samples.iter().map(|s| s[r]).sum::<f64>() / k;
-        means[r] = m;
-        var_of_mean[r] = samples.iter().map(|s| (s[r] - m).powi(2)).sum::<f64>() / (k - 1.0) / k;
-    }
-    (means, var_of_mean)
-}
-
-fn assert_agree(what: &str, (ma, va): (Vec<f64>, Vec<f64>), (mb, vb): (Vec<f64>, Vec<f64>)) {
-    let image = GRID * GRID;
-    let se = (va[image] + vb[image]).sqrt();
-    assert!(0.05 * mb[image] > Z_CRITICAL * se, "{what}: too weak (mean {:.5}, se {se:.5})", mb[image]);
-    let mut worst = 0.0f64;
-    let mut report = String::new();
-    for r in 0..=image {
-        let se = (va[r] + vb[r]).sqrt();
-        let z = if se > 0.0 {
-            (ma[r] - mb[r]) / se
-        } else if ma[r] == mb[r] {
-            0.0
-        } else {
-            f64::INFINITY
-        };
-        worst = worst.max(z.abs());
-        report += &format!("  region {r:2}: {:.5} vs {:.5}  z = {z:+.2}\n", ma[r], mb[r]);
-    }
-    println!("{what}: worst |z| = {worst:.2}\n{report}");
-    assert!(worst < Z_CRITICAL, "{what}: disagreement (|z| = {worst:.2})\n{report}");
-}
-
 fn mlt_agrees_with_pt(name: &str, method: &str, params: &str, mutations_per_pixel: u64) {
     let scene = scene(name, 32);
-    let pt = estimate(&scene, "pt", "max_depth = 8", 256);
-    let mlt = estimate(&scene, method, params, mutations_per_pixel);
+    let pt = estimate(&scene, "pt", "max_depth = 8", 256, 3);
+    let mlt = estimate(&scene, method, params, mutations_per_pixel, 3);
     assert_agree(&format!("{method} vs pt on {name}"), mlt, pt);
 }
 

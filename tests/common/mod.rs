@@ -1,0 +1,5 @@
+//! Helpers shared by the integration tests (each test file includes this with `mod common;`).
+
+#![allow(dead_code)]
+
+pub mod agreement;
