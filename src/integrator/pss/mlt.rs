@@ -150,6 +150,9 @@ struct SlotState {
     iterations: Vec<u64>,
     acceptance: Vec<AcceptanceCount>,
     nonzero_proposals: u64,
+    /// Acceptance of large steps ([0]) and small steps ([1]), reported as strategies at the end
+    /// (kept here so the per-mutation path does not touch the counters' string-keyed map).
+    step_acceptance: [AcceptanceCount; 2],
     /// Per depth: sum and count of large-step targets (for progressive b).
     large_steps: Vec<(f64, u64)>,
     /// MMLT: per depth, iterations with each technique s as the state.
@@ -319,6 +322,7 @@ impl Mlt {
             iterations: vec![0; depths],
             acceptance: vec![AcceptanceCount::default(); depths],
             nonzero_proposals: 0,
+            step_acceptance: [AcceptanceCount::default(); 2],
             large_steps: vec![(0.0, 0); depths],
             technique_counts: (0..depths).map(|d| vec![0; self.technique_count(d)]).collect(),
             count_films: (self.settings.technique_count_layers && self.variant == MltVariant::Mmlt)
@@ -371,13 +375,12 @@ impl Mlt {
             }
         }
         slot.iterations[d] += 1;
-        let strategy = if large { "large_step" } else { "small_step" };
-        let entry = counters.strategies.entry(strategy.to_string()).or_default();
-        entry.proposed += 1;
+        let step = &mut slot.step_acceptance[if large { 0 } else { 1 }];
+        step.proposed += 1;
         slot.acceptance[d].proposed += 1;
         let accepted = (rng.uniform() as f32) < a;
         if accepted {
-            entry.accepted += 1.0;
+            slot.step_acceptance[if large { 0 } else { 1 }].accepted += 1.0;
             slot.acceptance[d].accepted += 1.0;
             chain.sampler.accept();
             chain.current = proposal;
@@ -547,6 +550,9 @@ impl Integrator for Mlt {
                 }
             }
             merged.nonzero_proposals += s.nonzero_proposals;
+            for (a, b) in merged.step_acceptance.iter_mut().zip(&s.step_acceptance) {
+                a.merge(b);
+            }
         }
         let b_final: Vec<f64> = (0..depths)
             .map(|d| {
@@ -601,6 +607,8 @@ impl Integrator for Mlt {
             })
             .collect();
         let mut counters = out.counters;
+        counters.strategies.insert("large_step".to_string(), merged.step_acceptance[0]);
+        counters.strategies.insert("small_step".to_string(), merged.step_acceptance[1]);
         counters.merge(&boot.counters);
         counters.merge(&init_counters);
         Ok(RenderOutput {
