@@ -88,7 +88,7 @@ pub trait Integrator: Send + Sync {
 }
 
 /// The names `create` accepts, in the order `plexus render --help` lists them.
-pub const INTEGRATOR_NAMES: &[&str] = &["pt", "bdpt", "light", "pssmlt", "mmlt"];
+pub const INTEGRATOR_NAMES: &[&str] = &["pt", "bdpt", "light", "pssmlt", "mmlt", "rjmlt"];
 
 /// The integrator called `name`, configured from `params` (the scene's `[integrator]` table merged
 /// with `--set` overrides; unknown keys are errors).
@@ -99,6 +99,7 @@ pub fn create(name: &str, params: &toml::Table) -> Result<Box<dyn Integrator>, R
         "light" => Ok(Box::new(light_tracing::LightTracer::from_params(params)?)),
         "pssmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::mlt::MltVariant::Pssmlt, params)?)),
         "mmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::mlt::MltVariant::Mmlt, params)?)),
+        "rjmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::mlt::MltVariant::Rjmlt, params)?)),
         other => Err(RenderError::UnknownIntegrator(other.to_string())),
     }
 }

@@ -20,6 +20,17 @@
 //! the large steps (uniform samples) during the render without re-weighting earlier splats.
 //! PSSMLT is the special case of one "depth" with n = 1.
 //!
+//! # Reversible-jump MLT
+//! **RJMLT** (Bitterli et al. 2017) keeps MMLT's per-depth chains, target and normalisation but
+//! moves the technique out of the primary samples: the state is (s, ū) with s an integer that small
+//! steps never change. Each iteration is a large step (s and ū resampled uniformly, so the
+//! bootstrap and b_d are MMLT's), a small step of ū under the fixed technique, or a technique jump
+//! (Sec. 4 and the final algorithm of Sec. 6.2): choose j with probability w_j(x̄) of the current
+//! path x̄, invert x̄ into the primary samples technique j would have used (`inverse.rs`), evaluate
+//! that state and accept with Eq. 38/43 (`jump.rs`), which is 1 up to rounding when the inverse
+//! reproduces x̄. A path that cannot be inverted, or whose inverse does not reproduce it, is
+//! rejected and counted.
+//!
 //! # Expected values
 //! Each iteration splats the proposal with weight a and the current state with 1 − a (Veach's
 //! expected values), so rejected proposals still contribute.
@@ -27,8 +38,11 @@
 use glam::Vec2;
 use serde::{Deserialize, Serialize};
 
+use super::inverse::{invert_technique, InversionFailure};
+use super::jump::{jump_acceptance, JumpSide};
 use super::sampler::{MutationSettings, PssSampler};
 use crate::film::{Accumulator, Image};
+use crate::integrator::bdpt::path::full_path;
 use crate::integrator::bdpt::{
     connect_all, evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch,
     FilmRegion, MisHeuristic, Vertex,
@@ -52,12 +66,35 @@ const BOOTSTRAP_SEED_SALT: u64 = 0xB007_5742_u64;
 /// Distinguishes the chains' own streams (depth choice, acceptance) from the bootstrap's.
 const CHAIN_SEED_SALT: u64 = 0xC4A1_0000_u64;
 
-/// Which of the two methods.
+/// Which of the three methods.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MltVariant {
     Pssmlt,
     Mmlt,
+    Rjmlt,
 }
+
+impl MltVariant {
+    pub fn name(self) -> &'static str {
+        match self {
+            MltVariant::Pssmlt => "pssmlt",
+            MltVariant::Mmlt => "mmlt",
+            MltVariant::Rjmlt => "rjmlt",
+        }
+    }
+}
+
+/// RJMLT's default probability of a large step (Bitterli et al. 2017, Sec. 7: 10% large steps,
+/// 85% small steps, 5% technique jumps).
+pub const RJMLT_LARGE_STEP_PROBABILITY: f64 = 0.1;
+/// RJMLT's default probability of a technique jump.
+pub const RJMLT_JUMP_PROBABILITY: f64 = 0.05;
+
+/// Relative distance (to the adjacent segments' lengths) within which a path regenerated from its
+/// inverted primary samples counts as the same path. The round trip loses a few f32 ulps per
+/// vertex (direction maps, ray offsets), amplified along the walk; a different surface hit or a
+/// missed one is off by a whole segment.
+const SAME_PATH_TOLERANCE: f32 = 1e-3;
 
 /// Settings of `integrator = "pssmlt"` and `"mmlt"` (defaults: the MMLT paper, Sec. 5).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -69,8 +106,10 @@ pub struct MltSettings {
     pub bootstrap: u64,
     /// Number of independent chains (each holds one sub-chain per depth for MMLT).
     pub chains: u64,
-    /// Probability of a large step (Kelemen's p_large; 0.3).
+    /// Probability of a large step (Kelemen's p_large; 0.3; RJMLT 0.1).
     pub large_step_probability: f64,
+    /// RJMLT only: probability of a technique jump (0.05; the rest are small steps).
+    pub jump_probability: f64,
     /// Small-step width in primary sample space (0.01).
     pub sigma: f64,
     /// Refine b_d with every large step during the render (large steps are uniform samples, so
@@ -94,6 +133,7 @@ impl Default for MltSettings {
             bootstrap: 100_000,
             chains: 1000,
             large_step_probability: 0.3,
+            jump_probability: 0.0,
             sigma: 0.01,
             progressive_b: true,
             mis: MisHeuristic::Balance,
@@ -103,7 +143,7 @@ impl Default for MltSettings {
     }
 }
 
-/// PSSMLT or MMLT.
+/// PSSMLT, MMLT or RJMLT.
 #[derive(Clone, Debug)]
 pub struct Mlt {
     pub variant: MltVariant,
@@ -122,8 +162,18 @@ struct Splat {
 struct PathState {
     splats: Vec<Splat>,
     target: f32,
-    /// MMLT: the technique (light vertices) of the state.
+    /// MMLT, RJMLT: the technique (light vertices) of the state.
     s: usize,
+    /// RJMLT: the complete path (camera first) and every technique's MIS weight for it (index =
+    /// light vertices), for the next technique jump. Empty for a zero-contribution state.
+    path: Vec<Vertex>,
+    weights: Vec<f32>,
+    /// RJMLT: luminance of the technique's unweighted estimate C = f(x̄)/p(x̄) of the path.
+    unweighted: f32,
+    /// Technique paths this state evaluated (PSSMLT: every (s, t) combination of its subpaths;
+    /// MMLT, RJMLT: one) and how many of them contributed.
+    paths_evaluated: u32,
+    paths_nonzero: u32,
 }
 
 /// A chain for one depth (MMLT) or for all depths (PSSMLT).
@@ -150,6 +200,23 @@ struct SlotState {
     iterations: Vec<u64>,
     acceptance: Vec<AcceptanceCount>,
     nonzero_proposals: u64,
+    /// Technique paths evaluated by proposals, and those with a non-zero contribution.
+    paths_evaluated: u64,
+    paths_nonzero: u64,
+    /// Per depth: small steps (all methods), MMLT small steps whose proposal changes the technique,
+    /// and RJMLT technique jumps to another technique (the paper's Fig. 4 (a), (b), (c)).
+    small_steps: Vec<AcceptanceCount>,
+    technique_changes: Vec<AcceptanceCount>,
+    jumps: Vec<AcceptanceCount>,
+    /// RJMLT: jumps that chose the current technique (nothing changes), inverses that failed (by
+    /// `InversionFailure::ALL` order), inverses that did not reproduce the path, and valid jumps
+    /// whose ratio r of Eq. 38/43 was off 1 by more than 1e-3.
+    jumps_to_same_technique: u64,
+    inversion_failures: [u64; 5],
+    path_mismatches: u64,
+    jump_ratio_off: u64,
+    /// RJMLT: largest |r − 1| over valid jumps.
+    jump_ratio_max_deviation: f64,
     /// Acceptance of large steps ([0]) and small steps ([1]), reported as strategies at the end
     /// (kept here so the per-mutation path does not touch the counters' string-keyed map).
     step_acceptance: [AcceptanceCount; 2],
@@ -163,12 +230,29 @@ struct SlotState {
 
 impl Mlt {
     pub fn from_params(variant: MltVariant, params: &toml::Table) -> Result<Mlt, RenderError> {
-        let name = match variant {
-            MltVariant::Pssmlt => "pssmlt",
-            MltVariant::Mmlt => "mmlt",
-        };
-        let settings: MltSettings = settings_from_table(name, params)?;
+        let name = variant.name();
+        let mut settings: MltSettings = settings_from_table(name, params)?;
         let bad = |m: &str| Err(RenderError::Settings(format!("{name}: {m}")));
+        if variant == MltVariant::Rjmlt {
+            if !params.contains_key("large_step_probability") {
+                settings.large_step_probability = RJMLT_LARGE_STEP_PROBABILITY;
+            }
+            if !params.contains_key("jump_probability") {
+                settings.jump_probability = RJMLT_JUMP_PROBABILITY;
+            }
+            if settings.rr_depth != u32::MAX {
+                // The roulette number lies in an interval that depends on the path's throughput;
+                // the inverse walk treats it as unused.
+                return bad("rr_depth is not supported: the technique jumps invert paths without Russian roulette");
+            }
+        } else if params.contains_key("jump_probability") {
+            return bad("jump_probability applies only to rjmlt (technique jumps need inverse sampling)");
+        }
+        if !(0.0..=1.0).contains(&settings.jump_probability)
+            || settings.large_step_probability + settings.jump_probability > 1.0
+        {
+            return bad("jump_probability must be in [0, 1] and large_step_probability + jump_probability at most 1");
+        }
         if settings.max_depth == 0 {
             return bad("max_depth must be at least 1");
         }
@@ -193,7 +277,7 @@ impl Mlt {
     fn depth_count(&self) -> usize {
         match self.variant {
             MltVariant::Pssmlt => 1,
-            MltVariant::Mmlt => self.settings.max_depth as usize + 1,
+            MltVariant::Mmlt | MltVariant::Rjmlt => self.settings.max_depth as usize + 1,
         }
     }
 
@@ -203,8 +287,8 @@ impl Mlt {
     fn technique_count(&self, d: usize) -> usize {
         match self.variant {
             MltVariant::Pssmlt => 1,
-            MltVariant::Mmlt if d == 0 => 1,
-            MltVariant::Mmlt => d + 2,
+            MltVariant::Mmlt | MltVariant::Rjmlt if d == 0 => 1,
+            MltVariant::Mmlt | MltVariant::Rjmlt => d + 2,
         }
     }
 
@@ -219,12 +303,15 @@ impl Mlt {
         PssSampler::new(Rng::new(seed ^ BOOTSTRAP_SEED_SALT, stream), self.mutation(), STREAM_COUNT)
     }
 
-    /// Maps the sampler's current proposal to its contributions (the state's path).
+    /// Maps the sampler's current proposal to its contributions (the state's path). `technique`
+    /// fixes the number of light vertices (RJMLT's small steps and jumps); otherwise MMLT and
+    /// RJMLT read it from the technique stream.
     fn evaluate(
         &self,
         ctx: &BdptContext,
         d: usize,
         sampler: &mut PssSampler,
+        technique: Option<usize>,
         slot: &mut SlotState,
         counters: &mut Counters,
     ) -> PathState {
@@ -245,6 +332,7 @@ impl Mlt {
                 generate_light_subpath(ctx, sampler, max_depth + 1, &mut slot.light, counters);
                 sampler.start_stream(CONNECTION_STREAM);
                 let splats = &mut state.splats;
+                state.paths_evaluated = techniques_of_subpaths(slot.light.len(), slot.camera.len(), max_depth);
                 connect_all(
                     ctx,
                     &slot.light,
@@ -264,12 +352,19 @@ impl Mlt {
                     },
                 );
             }
-            MltVariant::Mmlt => {
+            MltVariant::Mmlt | MltVariant::Rjmlt => {
                 // Alg. 2: t = ⌊n·u_t⌋ in the paper's numbering; here s = ⌊n·u_t⌋ light vertices
                 // and t = n − s camera vertices (t ≥ 1: a pinhole cannot be hit).
-                sampler.start_stream(TECHNIQUE_STREAM);
                 let n = self.technique_count(d);
-                let s = ((sampler.next_1d() * n as f32) as usize).min(n - 1);
+                let s = match technique {
+                    Some(s) => s.min(n - 1),
+                    None => {
+                        sampler.start_stream(TECHNIQUE_STREAM);
+                        ((sampler.next_1d() * n as f32) as usize).min(n - 1)
+                    }
+                };
+                state.paths_evaluated = 1;
+                let rjmlt = self.variant == MltVariant::Rjmlt;
                 let t = d + 2 - s;
                 state.s = s;
                 sampler.start_stream(CAMERA_STREAM);
@@ -292,11 +387,15 @@ impl Mlt {
                         sampler,
                         &mut slot.scratch,
                         counters,
-                        None,
+                        if rjmlt { Some(&mut state.weights) } else { None },
                     ) {
                         let value = c.weighted();
                         if is_finite(value) {
                             state.splats.push(Splat { raster: c.raster, value });
+                            if rjmlt {
+                                state.path = full_path(&slot.light, &slot.camera, &c);
+                                state.unweighted = luminance(c.contribution);
+                            }
                         } else {
                             counters.nonfinite_dropped += 1;
                         }
@@ -304,10 +403,13 @@ impl Mlt {
                 }
             }
         }
+        state.paths_nonzero = state.splats.len() as u32;
         let target: f32 = state.splats.iter().map(|s| luminance(s.value)).sum();
         state.target = if target.is_finite() && target > 0.0 { target } else { 0.0 };
         if state.target == 0.0 {
             state.splats.clear();
+            state.path.clear();
+            state.weights.clear();
         }
         state
     }
@@ -322,15 +424,26 @@ impl Mlt {
             iterations: vec![0; depths],
             acceptance: vec![AcceptanceCount::default(); depths],
             nonzero_proposals: 0,
+            paths_evaluated: 0,
+            paths_nonzero: 0,
+            small_steps: vec![AcceptanceCount::default(); depths],
+            technique_changes: vec![AcceptanceCount::default(); depths],
+            jumps: vec![AcceptanceCount::default(); depths],
+            jumps_to_same_technique: 0,
+            inversion_failures: [0; 5],
+            path_mismatches: 0,
+            jump_ratio_off: 0,
+            jump_ratio_max_deviation: 0.0,
             step_acceptance: [AcceptanceCount::default(); 2],
             large_steps: vec![(0.0, 0); depths],
             technique_counts: (0..depths).map(|d| vec![0; self.technique_count(d)]).collect(),
-            count_films: (self.settings.technique_count_layers && self.variant == MltVariant::Mmlt)
+            count_films: (self.settings.technique_count_layers && self.variant != MltVariant::Pssmlt)
                 .then(|| (0..depths).map(|d| vec![Accumulator::new(width, height); self.technique_count(d)]).collect()),
         }
     }
 
-    /// One Metropolis iteration of sub-chain `d`.
+    /// One Metropolis iteration of sub-chain `d`: a large or small step of the primary samples
+    /// (all methods), or for RJMLT, with probability `jump_probability`, a technique jump.
     fn iterate(
         &self,
         ctx: &BdptContext,
@@ -340,9 +453,44 @@ impl Mlt {
         slot: &mut SlotState,
         counters: &mut Counters,
     ) {
-        chain.sampler.start_iteration();
-        let large = chain.sampler.is_large_step();
-        let proposal = self.evaluate(ctx, d, &mut chain.sampler, slot, counters);
+        let (large, jump) = if self.variant == MltVariant::Rjmlt {
+            let u = rng.uniform() as f64;
+            let large = u < self.settings.large_step_probability;
+            (large, !large && u < self.settings.large_step_probability + self.settings.jump_probability)
+        } else {
+            chain.sampler.start_iteration();
+            (chain.sampler.is_large_step(), false)
+        };
+        let (proposal, a) = if jump {
+            match self.propose_jump(ctx, d, chain, rng, slot, counters) {
+                Some(p) => p,
+                None => {
+                    // The jump chose the current technique: the state stays, and it is splatted.
+                    self.splat(d, &chain.current, 1.0, slot);
+                    slot.iterations[d] += 1;
+                    self.count_technique_state(d, &chain.current, slot);
+                    return;
+                }
+            }
+        } else {
+            if self.variant == MltVariant::Rjmlt {
+                chain.sampler.start_iteration_with(large);
+            }
+            // RJMLT's small steps keep the technique; its large steps draw one uniformly.
+            let technique = (self.variant == MltVariant::Rjmlt && !large).then_some(chain.current.s);
+            let proposal = self.evaluate(ctx, d, &mut chain.sampler, technique, slot, counters);
+            // Eq. 20 (and Alg. 1): a = target(proposal) / target(current). A current state of
+            // zero target (only possible before any light was found) accepts any proposal.
+            let cur = chain.current.target;
+            let a = if cur > 0.0 {
+                (proposal.target / cur).min(1.0)
+            } else if proposal.target > 0.0 {
+                1.0
+            } else {
+                0.0
+            };
+            (proposal, a)
+        };
         counters.samples += 1;
         if large {
             slot.large_steps[d].0 += proposal.target as f64;
@@ -351,57 +499,203 @@ impl Mlt {
         if proposal.target > 0.0 {
             slot.nonzero_proposals += 1;
         }
-        // Eq. 20 (and Alg. 1): a = target(proposal) / target(current). A current state of zero
-        // target (only possible before any light was found) accepts any proposal.
-        let cur = chain.current.target;
-        let a = if cur > 0.0 {
-            (proposal.target / cur).min(1.0)
-        } else if proposal.target > 0.0 {
-            1.0
-        } else {
-            0.0
-        };
-        let film = &mut slot.films[d];
-        if a > 0.0 {
-            let w = a / proposal.target;
-            for sp in &proposal.splats {
-                film.splat(sp.raster, sp.value * w);
-            }
-        }
-        if a < 1.0 && cur > 0.0 {
-            let w = (1.0 - a) / cur;
-            for sp in &chain.current.splats {
-                film.splat(sp.raster, sp.value * w);
-            }
+        slot.paths_evaluated += proposal.paths_evaluated as u64;
+        slot.paths_nonzero += proposal.paths_nonzero as u64;
+        self.splat(d, &proposal, a, slot);
+        if a < 1.0 {
+            self.splat(d, &chain.current, 1.0 - a, slot);
         }
         slot.iterations[d] += 1;
-        let step = &mut slot.step_acceptance[if large { 0 } else { 1 }];
-        step.proposed += 1;
-        slot.acceptance[d].proposed += 1;
         let accepted = (rng.uniform() as f32) < a;
+        let tally = |count: &mut AcceptanceCount| {
+            count.proposed += 1;
+            if accepted {
+                count.accepted += 1.0;
+            }
+        };
+        tally(&mut slot.acceptance[d]);
+        if jump {
+            tally(&mut slot.jumps[d]);
+        } else {
+            tally(&mut slot.step_acceptance[if large { 0 } else { 1 }]);
+            if !large {
+                tally(&mut slot.small_steps[d]);
+                if self.variant == MltVariant::Mmlt && proposal.s != chain.current.s {
+                    tally(&mut slot.technique_changes[d]);
+                }
+            }
+        }
         if accepted {
-            slot.step_acceptance[if large { 0 } else { 1 }].accepted += 1.0;
-            slot.acceptance[d].accepted += 1.0;
             chain.sampler.accept();
             chain.current = proposal;
         } else {
             chain.sampler.reject();
         }
-        if self.variant == MltVariant::Mmlt {
-            slot.technique_counts[d][chain.current.s] += 1;
-            if let (Some(films), Some(sp)) = (slot.count_films.as_mut(), chain.current.splats.first()) {
-                films[d][chain.current.s].splat(sp.raster, Rgb::ONE);
+        self.count_technique_state(d, &chain.current, slot);
+    }
+
+    /// Splats `state`'s contributions with weight `w` / target (Veach's expected values).
+    fn splat(&self, d: usize, state: &PathState, w: f32, slot: &mut SlotState) {
+        if !(w > 0.0) || !(state.target > 0.0) {
+            return;
+        }
+        let w = w / state.target;
+        for sp in &state.splats {
+            slot.films[d].splat(sp.raster, sp.value * w);
+        }
+    }
+
+    /// MMLT and RJMLT: which technique the chain's state has (the paper's Fig. 5).
+    fn count_technique_state(&self, d: usize, current: &PathState, slot: &mut SlotState) {
+        if self.variant == MltVariant::Pssmlt {
+            return;
+        }
+        slot.technique_counts[d][current.s] += 1;
+        if let (Some(films), Some(sp)) = (slot.count_films.as_mut(), current.splats.first()) {
+            films[d][current.s].splat(sp.raster, Rgb::ONE);
+        }
+    }
+
+    /// RJMLT's technique jump (Bitterli et al. 2017, final algorithm of Sec. 6.2): choose j with
+    /// probability w_j(x̄) of the current path x̄; write S_j⁻¹(x̄) into the sampler as a new
+    /// iteration; evaluate that state; return it with its acceptance min(1, r) of Eq. 38/43.
+    /// `None` when j is the current technique (the state does not change and no iteration is
+    /// started). A failed inverse, or one that does not reproduce x̄, gives a zero-target proposal
+    /// with acceptance 0.
+    fn propose_jump(
+        &self,
+        ctx: &BdptContext,
+        d: usize,
+        chain: &mut SubChain,
+        rng: &mut Rng,
+        slot: &mut SlotState,
+        counters: &mut Counters,
+    ) -> Option<(PathState, f32)> {
+        let current = &chain.current;
+        let i = current.s;
+        let n = self.technique_count(d);
+        // T(i → j) = w_j(x̄) (Eq. 33), over the techniques this depth's chain can be in.
+        let weight = |s: usize| current.weights.get(s).copied().filter(|w| w.is_finite() && *w > 0.0).unwrap_or(0.0);
+        let total: f32 = (0..n).map(weight).sum();
+        if !(current.target > 0.0) || current.path.is_empty() || !(total > 0.0) {
+            return None;
+        }
+        let mut u = rng.uniform() * total;
+        let mut j = i;
+        for s in 0..n {
+            let w = weight(s);
+            if w > 0.0 {
+                j = s;
+                if u < w {
+                    break;
+                }
+                u -= w;
+            }
+        }
+        if j == i {
+            slot.jumps_to_same_technique += 1;
+            return None;
+        }
+        chain.sampler.start_iteration_with(false);
+        let rejected = PathState { s: j, ..PathState::default() };
+        let inverse = match invert_technique(ctx.scene, &current.path, j, rng) {
+            Ok(inverse) => inverse,
+            Err(failure) => {
+                let k = InversionFailure::ALL.iter().position(|f| *f == failure).unwrap_or(0);
+                slot.inversion_failures[k] += 1;
+                return Some((rejected, 0.0));
+            }
+        };
+        for (stream, values) in
+            [(CAMERA_STREAM, &inverse.camera), (LIGHT_STREAM, &inverse.light), (CONNECTION_STREAM, &inverse.connection)]
+        {
+            for (position, &value) in values.iter().enumerate() {
+                chain.sampler.put(stream, position, value);
+            }
+        }
+        let proposal = self.evaluate(ctx, d, &mut chain.sampler, Some(j), slot, counters);
+        if !(proposal.target > 0.0) || !same_path(&proposal.path, &current.path) {
+            slot.path_mismatches += 1;
+            return Some((rejected, 0.0));
+        }
+        // Eq. 38 with Eq. 43. By Eq. 44 each step's |J[g⁻¹]| / T(t) is that step's full (mixture)
+        // density, so over an inverse walk |J[S⁻¹]| / T = p(x̄), the technique's path density, and
+        // only the ratio p_j(x̄) / p_i(x̄) enters. It is taken from the two techniques' own unweighted
+        // estimates of the shared path, C = f(x̄)/p(x̄), which the walks compute exactly: the MIS
+        // recurrence's densities are not a substitute, since across specular chains it drops the
+        // chains' Jacobians (delta densities count as 1; the weights stay valid, but w_j/w_i is then
+        // not p_j/p_i). The ratio is 1 up to rounding whenever the regenerated path is x̄.
+        let density_ratio = current.unweighted as f64 / proposal.unweighted as f64;
+        let current_side = JumpSide {
+            target: current.target as f64,
+            technique_choice: weight(j) as f64,
+            inverse_jacobian: 1.0,
+            branch_choice: 1.0,
+        };
+        let proposal_side = JumpSide {
+            target: proposal.target as f64,
+            technique_choice: proposal.weights.get(i).copied().unwrap_or(0.0) as f64,
+            inverse_jacobian: density_ratio,
+            branch_choice: 1.0,
+        };
+        let r = jump_acceptance(&current_side, &proposal_side);
+        let deviation = (r - 1.0).abs();
+        slot.jump_ratio_max_deviation = slot.jump_ratio_max_deviation.max(deviation);
+        if deviation > 1e-3 {
+            slot.jump_ratio_off += 1;
+        }
+        Some((proposal, r.min(1.0) as f32))
+    }
+}
+
+/// Number of BDPT techniques (s, t) `connect_all` evaluates on subpaths of these lengths: t ≥ 1,
+/// s + t − 2 ≤ max_depth, not (1, 1).
+fn techniques_of_subpaths(light: usize, camera: usize, max_depth: usize) -> u32 {
+    let mut n = 0;
+    for t in 1..=camera {
+        for s in 0..=light {
+            let depth = (s + t) as isize - 2;
+            if !(s == 1 && t == 1) && depth >= 0 && depth as usize <= max_depth {
+                n += 1;
             }
         }
     }
+    n
+}
+
+/// Whether a path regenerated from inverted primary samples is the path it was inverted from:
+/// the same number of vertices, each within `SAME_PATH_TOLERANCE` of the shorter adjacent segment
+/// (directions for vertices at infinity).
+fn same_path(a: &[Vertex], b: &[Vertex]) -> bool {
+    if a.len() != b.len() || a.is_empty() {
+        return false;
+    }
+    let segment = |path: &[Vertex], k: usize| -> f32 {
+        let mut len = f32::INFINITY;
+        for m in [k.wrapping_sub(1), k + 1] {
+            if let Some(v) = path.get(m) {
+                if !v.infinite && !path[k].infinite {
+                    len = len.min(v.p.distance(path[k].p));
+                }
+            }
+        }
+        len
+    };
+    a.iter().zip(b).enumerate().all(|(k, (x, y))| {
+        if x.infinite != y.infinite || (x.kind != y.kind && k > 0 && k + 1 < a.len()) {
+            return false;
+        }
+        if x.infinite {
+            x.dir.dot(y.dir) >= 1.0 - SAME_PATH_TOLERANCE * SAME_PATH_TOLERANCE
+        } else {
+            x.p.distance(y.p) <= SAME_PATH_TOLERANCE * segment(b, k)
+        }
+    })
 }
 
 impl Integrator for Mlt {
     fn name(&self) -> &'static str {
-        match self.variant {
-            MltVariant::Pssmlt => "pssmlt",
-            MltVariant::Mmlt => "mmlt",
-        }
+        self.variant.name()
     }
 
     fn settings_json(&self) -> serde_json::Value {
@@ -435,7 +729,7 @@ impl Integrator for Mlt {
                 for i in start..end {
                     let mut sampler = self.bootstrap_sampler(job.seed, *d, i);
                     sampler.start_iteration_with(true);
-                    let st = self.evaluate(&ctx, *d, &mut sampler, &mut slot.state, &mut slot.counters);
+                    let st = self.evaluate(&ctx, *d, &mut sampler, None, &mut slot.state, &mut slot.counters);
                     targets.push(st.target);
                 }
                 0
@@ -482,7 +776,7 @@ impl Integrator for Mlt {
                         let (i, _, _) = dist.sample_discrete(rng.uniform());
                         let mut sampler = self.bootstrap_sampler(job.seed, d, i as u64);
                         sampler.start_iteration_with(true);
-                        let current = self.evaluate(&ctx, d, &mut sampler, &mut init_slot, &mut init_counters);
+                        let current = self.evaluate(&ctx, d, &mut sampler, None, &mut init_slot, &mut init_counters);
                         sampler.accept();
                         Some(SubChain { sampler, current })
                     })
@@ -538,6 +832,9 @@ impl Integrator for Mlt {
                 merged.films[d].merge(&s.films[d]);
                 merged.iterations[d] += s.iterations[d];
                 merged.acceptance[d].merge(&s.acceptance[d]);
+                merged.small_steps[d].merge(&s.small_steps[d]);
+                merged.technique_changes[d].merge(&s.technique_changes[d]);
+                merged.jumps[d].merge(&s.jumps[d]);
                 merged.large_steps[d].0 += s.large_steps[d].0;
                 merged.large_steps[d].1 += s.large_steps[d].1;
                 for (a, b) in merged.technique_counts[d].iter_mut().zip(&s.technique_counts[d]) {
@@ -550,6 +847,15 @@ impl Integrator for Mlt {
                 }
             }
             merged.nonzero_proposals += s.nonzero_proposals;
+            merged.paths_evaluated += s.paths_evaluated;
+            merged.paths_nonzero += s.paths_nonzero;
+            merged.jumps_to_same_technique += s.jumps_to_same_technique;
+            for (a, b) in merged.inversion_failures.iter_mut().zip(&s.inversion_failures) {
+                *a += b;
+            }
+            merged.path_mismatches += s.path_mismatches;
+            merged.jump_ratio_off += s.jump_ratio_off;
+            merged.jump_ratio_max_deviation = merged.jump_ratio_max_deviation.max(s.jump_ratio_max_deviation);
             for (a, b) in merged.step_acceptance.iter_mut().zip(&s.step_acceptance) {
                 a.merge(b);
             }
@@ -585,7 +891,18 @@ impl Integrator for Mlt {
         }
         let proposals: u64 = merged.acceptance.iter().map(|a| a.proposed).sum();
         let accepted: f64 = merged.acceptance.iter().map(|a| a.accepted).sum();
-        let effective_path_ratio = if proposals > 0 { merged.nonzero_proposals as f64 / proposals as f64 } else { 0.0 };
+        let ratio = |a: u64, b: u64| if b > 0 { a as f64 / b as f64 } else { 0.0 };
+        // The paper's effective path ratio counts light-path samples: a PSSMLT proposal evaluates
+        // every technique (s, t) of its subpaths, an MMLT or RJMLT proposal one (see docs/mlt.md).
+        let effective_path_ratio = ratio(merged.paths_nonzero, merged.paths_evaluated);
+        let nonzero_proposal_ratio = ratio(merged.nonzero_proposals, proposals);
+        let rate_or_null = |a: &AcceptanceCount| {
+            if a.proposed > 0 {
+                serde_json::json!(a.rate())
+            } else {
+                serde_json::Value::Null
+            }
+        };
         let per_depth: Vec<serde_json::Value> = (0..depths)
             .map(|d| {
                 serde_json::json!({
@@ -594,7 +911,20 @@ impl Integrator for Mlt {
                     "b": b_final[d],
                     "iterations": merged.iterations[d],
                     "acceptance": merged.acceptance[d].rate(),
-                    "technique_state_counts": if self.variant == MltVariant::Mmlt {
+                    "small_step_acceptance": rate_or_null(&merged.small_steps[d]),
+                    "technique_change": if self.variant == MltVariant::Mmlt {
+                        serde_json::json!({"proposals": merged.technique_changes[d].proposed,
+                                           "acceptance": rate_or_null(&merged.technique_changes[d])})
+                    } else {
+                        serde_json::Value::Null
+                    },
+                    "jumps": if self.variant == MltVariant::Rjmlt {
+                        serde_json::json!({"proposals": merged.jumps[d].proposed,
+                                           "acceptance": rate_or_null(&merged.jumps[d])})
+                    } else {
+                        serde_json::Value::Null
+                    },
+                    "technique_state_counts": if self.variant != MltVariant::Pssmlt {
                         serde_json::json!(merged.technique_counts[d]
                             .iter()
                             .enumerate()
@@ -609,6 +939,29 @@ impl Integrator for Mlt {
         let mut counters = out.counters;
         counters.strategies.insert("large_step".to_string(), merged.step_acceptance[0]);
         counters.strategies.insert("small_step".to_string(), merged.step_acceptance[1]);
+        let jump_stats = if self.variant == MltVariant::Rjmlt {
+            let mut all = AcceptanceCount::default();
+            for j in &merged.jumps {
+                all.merge(j);
+            }
+            counters.strategies.insert("technique_jump".to_string(), all);
+            let failures: serde_json::Map<String, serde_json::Value> = InversionFailure::ALL
+                .iter()
+                .zip(&merged.inversion_failures)
+                .map(|(f, &c)| (f.name().to_string(), c.into()))
+                .collect();
+            serde_json::json!({
+                "proposals": all.proposed,
+                "acceptance": rate_or_null(&all),
+                "to_same_technique": merged.jumps_to_same_technique,
+                "inversion_failures": failures,
+                "path_mismatches": merged.path_mismatches,
+                "ratio_off_by_more_than_1e-3": merged.jump_ratio_off,
+                "ratio_max_deviation": merged.jump_ratio_max_deviation,
+            })
+        } else {
+            serde_json::Value::Null
+        };
         counters.merge(&boot.counters);
         counters.merge(&init_counters);
         Ok(RenderOutput {
@@ -625,6 +978,9 @@ impl Integrator for Mlt {
                 "bootstrap_seconds": boot.elapsed.as_secs_f64(),
                 "acceptance": if proposals > 0 { accepted / proposals as f64 } else { 0.0 },
                 "effective_path_ratio": effective_path_ratio,
+                "nonzero_proposal_ratio": nonzero_proposal_ratio,
+                "technique_paths_evaluated": merged.paths_evaluated,
+                "jumps": jump_stats,
                 "per_depth": per_depth,
                 "warnings": warnings,
             }),
