@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# PSSMLT against MMLT on the door scene (scenes/veach-ajar.toml) at an equal time budget, one render
-# each with the same seed and thread count; prints a Markdown table of the statistics the renderer
-# writes to <out>.json (integrator_stats): mutations, mutations/s, acceptance, effective path ratio
-# (the fraction of proposals with non-zero contribution; MMLT paper, Sec. 5: 11.81% PSSMLT against
-# 29.75% MMLT) and bootstrap time.
+# PSSMLT, MMLT and RJMLT on the door scene (scenes/veach-ajar.toml) at an equal time budget, one
+# render each with the same seed and thread count; prints Markdown tables of the statistics the
+# renderer writes to <out>.json (integrator_stats): mutations, mutations/s, acceptance, effective
+# path ratio (technique paths with a non-zero contribution over technique paths evaluated; MMLT
+# paper, Sec. 5: 11.81% PSSMLT against 29.75% MMLT), the fraction of proposals with a non-zero
+# contribution, bootstrap time; MMLT's technique share per depth; and the acceptance per depth of
+# RJMLT's small steps, MMLT's technique-changing small steps and RJMLT's jumps (RJMLT paper, Fig. 4).
 #
 # Usage: scripts/bench-mlt.sh [SCENE]
 # Environment (defaults in brackets):
@@ -42,7 +44,7 @@ if [[ -n "${BOOTSTRAP:-}" ]]; then
     extra+=(--set "bootstrap=$BOOTSTRAP")
 fi
 
-for method in pssmlt mmlt; do
+for method in pssmlt mmlt rjmlt; do
     cmd=("$plexus" render "$scene" --integrator "$method" --time "$time_budget" --threads "$threads"
         --seed "$seed" --out "$outdir/$method.exr" "${extra[@]}")
     echo "bench-mlt: ${cmd[*]}" >&2
@@ -53,40 +55,51 @@ python3 - "$outdir" <<'PY'
 import json, sys, os
 
 outdir = sys.argv[1]
-rows = []
-depth_lines = []
-for method in ("pssmlt", "mmlt"):
+docs = {}
+for method in ("pssmlt", "mmlt", "rjmlt"):
     with open(os.path.join(outdir, method + ".json")) as f:
-        doc = json.load(f)
-    st = doc.get("integrator_stats", {})
+        docs[method] = json.load(f)
+    st = docs[method].get("integrator_stats", {})
     if "mutations" not in st:
         # A black scene (no bootstrap path carried light) stops after the bootstrap.
         sys.exit("bench-mlt: %s rendered no chains: %s" % (method, "; ".join(st.get("warnings", []))))
-    muts = st["mutations"]
-    boot = st["bootstrap_seconds"]
-    wall = doc.get("wall_time_s")
+
+def pct(x):
+    return "—" if x is None else "%.1f%%" % (100.0 * x)
+
+print("| method | mutations | mutations/s | acceptance | effective path ratio | non-zero proposals | bootstrap (paths/depth, s) | wall time |")
+print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+for method, doc in docs.items():
+    st = doc["integrator_stats"]
+    muts, boot, wall = st["mutations"], st["bootstrap_seconds"], doc.get("wall_time_s")
     # Mutations per second of chain time: the render's wall time minus the bootstrap.
     chain_s = (wall - boot) if isinstance(wall, (int, float)) and wall > boot else None
     rate = muts / chain_s if chain_s else float("nan")
-    rows.append((method.upper() if method == "mmlt" else "PSSMLT", muts, rate, st["acceptance"],
-                 st["effective_path_ratio"], boot, st.get("bootstrap_paths_per_depth")))
-    if method == "mmlt":
-        for d in st["per_depth"]:
-            counts = d.get("technique_state_counts") or []
-            total = sum(c["iterations"] for c in counts) or 1
-            parts = ", ".join("s%d t%d %.1f%%" % (c["s"], c["t"], 100.0 * c["iterations"] / total) for c in counts)
-            depth_lines.append("| %s | %d | %.3g | %.3g | %.1f%% | %s |" % (
-                d["depth"], d["iterations"], d["b_bootstrap"], d["b"], 100.0 * d["acceptance"], parts))
-
-print("| method | mutations | mutations/s | acceptance | effective path ratio | bootstrap (paths/depth, s) |")
-print("| --- | ---: | ---: | ---: | ---: | ---: |")
-for name, muts, rate, acc, epr, boot, n in rows:
-    print("| %s | %d | %.3g | %.2f%% | %.2f%% | %s, %.2f s |" % (name, muts, rate, 100 * acc, 100 * epr, n, boot))
+    print("| %s | %d | %.3g | %s | %s | %s | %s, %.2f s | %.1f s |" % (method.upper(), muts, rate, pct(st["acceptance"]),
+          pct(st["effective_path_ratio"]), pct(st["nonzero_proposal_ratio"]), st.get("bootstrap_paths_per_depth"), boot, wall))
 print()
 print("MMLT per depth (d = scattering events; technique share = fraction of iterations the state used (s, t)):")
 print()
 print("| depth | iterations | b (bootstrap) | b (final) | acceptance | technique share |")
 print("| ---: | ---: | ---: | ---: | ---: | --- |")
-for line in depth_lines:
-    print(line)
+for d in docs["mmlt"]["integrator_stats"]["per_depth"]:
+    counts = d.get("technique_state_counts") or []
+    total = sum(c["iterations"] for c in counts) or 1
+    parts = ", ".join("s%d t%d %.1f%%" % (c["s"], c["t"], 100.0 * c["iterations"] / total) for c in counts)
+    print("| %s | %d | %.3g | %.3g | %s | %s |" % (d["depth"], d["iterations"], d["b_bootstrap"], d["b"], pct(d["acceptance"]), parts))
+print()
+jumps = docs["rjmlt"]["integrator_stats"]["jumps"]
+print("Acceptance per path depth (RJMLT paper, Fig. 4): (a) RJMLT small steps, which keep the technique;")
+print("(b) MMLT small steps whose proposal has another technique; (c) RJMLT technique jumps. Depth 0 has one")
+print("technique. RJMLT jumps in all: %d proposed, %s accepted, %d chose the current technique, %d failed"
+      " inverses, %d regenerated paths off the original, largest |r - 1| = %.2g." % (
+      jumps["proposals"], pct(jumps["acceptance"]), jumps["to_same_technique"],
+      sum(jumps["inversion_failures"].values()), jumps["path_mismatches"], jumps["ratio_max_deviation"]))
+print()
+print("| depth | (a) RJMLT small steps | (b) MMLT technique changes (proposals) | (c) RJMLT jumps (proposals) |")
+print("| ---: | ---: | ---: | ---: |")
+for m, r in zip(docs["mmlt"]["integrator_stats"]["per_depth"], docs["rjmlt"]["integrator_stats"]["per_depth"]):
+    tc, jp = m.get("technique_change") or {}, r.get("jumps") or {}
+    print("| %s | %s | %s (%s) | %s (%s) |" % (m["depth"], pct(r.get("small_step_acceptance")),
+          pct(tc.get("acceptance")), tc.get("proposals", 0), pct(jp.get("acceptance")), jp.get("proposals", 0)))
 PY

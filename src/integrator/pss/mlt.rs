@@ -35,6 +35,8 @@
 //! Each iteration splats the proposal with weight a and the current state with 1 − a (Veach's
 //! expected values), so rejected proposals still contribute.
 
+use std::time::Instant;
+
 use glam::Vec2;
 use serde::{Deserialize, Serialize};
 
@@ -709,34 +711,60 @@ impl Integrator for Mlt {
         let rr = if self.settings.rr_depth == u32::MAX { usize::MAX } else { self.settings.rr_depth as usize };
         let ctx = BdptContext::new(scene, rr, self.settings.mis);
         let depths = self.depth_count();
-        let n_boot = self.settings.bootstrap;
+        let render_start = Instant::now();
+        let time_budget = match job.budget {
+            Budget::Seconds(s) => Some(s),
+            Budget::SamplesPerPixel(_) => None,
+        };
 
-        // Bootstrap: n_boot uniform samples per depth, in batches over the pool (deterministic:
-        // each sample has its own stream). Each batch keeps its samples' targets.
+        // Bootstrap: up to `bootstrap` uniform samples per depth, in batches over the pool
+        // (deterministic: each sample has its own stream). Each batch keeps its samples' targets.
+        // The first round runs one batch per depth; under a time budget the remaining rounds are
+        // capped so that the bootstrap takes at most BOOTSTRAP_SHARE of the budget (large steps
+        // keep refining b during the render, so a shorter bootstrap costs accuracy of the start
+        // only, not correctness).
         progress.message("bootstrap");
         const BATCH: u64 = 4096;
-        let batches_per_depth = n_boot.div_ceil(BATCH);
-        let batches: Vec<(usize, u64, Vec<f32>)> =
-            (0..depths).flat_map(|d| (0..batches_per_depth).map(move |b| (d, b, Vec::new()))).collect();
-        let boot = driver.run(
-            batches,
-            Passes::Count(1),
-            progress,
-            |_| self.new_slot(0, 0),
-            |_, (d, b, targets), slot| {
-                let start = *b * BATCH;
-                let end = (start + BATCH).min(n_boot);
-                for i in start..end {
-                    let mut sampler = self.bootstrap_sampler(job.seed, *d, i);
-                    sampler.start_iteration_with(true);
-                    let st = self.evaluate(&ctx, *d, &mut sampler, None, &mut slot.state, &mut slot.counters);
-                    targets.push(st.target);
-                }
-                0
-            },
-        );
+        const BOOTSTRAP_SHARE: f64 = 0.25;
+        let n_requested = self.settings.bootstrap;
+        let batches_per_depth = n_requested.div_ceil(BATCH);
+        let run_batches = |rounds: std::ops::Range<u64>| {
+            let batches: Vec<(usize, u64, Vec<f32>)> =
+                (0..depths).flat_map(|d| rounds.clone().map(move |b| (d, b, Vec::new()))).collect();
+            driver.run(
+                batches,
+                Passes::Count(1),
+                progress,
+                |_| self.new_slot(0, 0),
+                |_, (d, b, targets), slot| {
+                    let start = *b * BATCH;
+                    let end = (start + BATCH).min(n_requested);
+                    for i in start..end {
+                        let mut sampler = self.bootstrap_sampler(job.seed, *d, i);
+                        sampler.start_iteration_with(true);
+                        let st = self.evaluate(&ctx, *d, &mut sampler, None, &mut slot.state, &mut slot.counters);
+                        targets.push(st.target);
+                    }
+                    0
+                },
+            )
+        };
+        let first = run_batches(0..1);
+        let rounds = match time_budget {
+            Some(s) => {
+                let round = first.elapsed.as_secs_f64().max(1e-6);
+                let affordable = ((BOOTSTRAP_SHARE * s - round) / round).floor().max(0.0) as u64;
+                batches_per_depth.min(1 + affordable)
+            }
+            None => batches_per_depth,
+        };
+        let rest = run_batches(1..rounds);
+        let n_boot = n_requested.min(rounds * BATCH);
+        let mut boot_counters = first.counters;
+        boot_counters.merge(&rest.counters);
+        let boot_elapsed = first.elapsed + rest.elapsed;
         let mut boot_targets: Vec<Vec<f32>> = vec![Vec::with_capacity(n_boot as usize); depths];
-        for (d, _, t) in boot.units {
+        for (d, _, t) in first.units.into_iter().chain(rest.units) {
             boot_targets[d].extend(t);
         }
         let boot_sums: Vec<f64> = boot_targets.iter().map(|t| t.iter().map(|&x| x as f64).sum()).collect();
@@ -753,8 +781,8 @@ impl Integrator for Mlt {
             return Ok(RenderOutput {
                 image: Image::new(width, height),
                 layers: Vec::new(),
-                counters: boot.counters,
-                wall_time: boot.elapsed,
+                counters: boot_counters,
+                wall_time: render_start.elapsed(),
                 extra_stats: serde_json::json!({ "warnings": warnings, "b": b_boot, "bootstrap_paths_per_depth": n_boot }),
             });
         }
@@ -794,7 +822,8 @@ impl Integrator for Mlt {
                 progress.set_total(total.div_ceil(per_pass) * per_pass);
                 Passes::Count(total.div_ceil(per_pass))
             }
-            Budget::Seconds(s) => Passes::Seconds(s),
+            // The bootstrap and the chains' start are part of the user's budget.
+            Budget::Seconds(s) => Passes::Seconds((s - render_start.elapsed().as_secs_f64()).max(0.0)),
         };
         progress.message("mutating");
         let out = driver.run(
@@ -962,20 +991,20 @@ impl Integrator for Mlt {
         } else {
             serde_json::Value::Null
         };
-        counters.merge(&boot.counters);
+        counters.merge(&boot_counters);
         counters.merge(&init_counters);
         Ok(RenderOutput {
             image,
             layers,
             counters,
-            wall_time: boot.elapsed + out.elapsed,
+            wall_time: render_start.elapsed(),
             extra_stats: serde_json::json!({
                 "mutations": proposals,
                 "mutations_per_pixel": proposals as f64 / pixels as f64,
                 "passes": out.passes,
                 "segment_length": segment,
                 "bootstrap_paths_per_depth": n_boot,
-                "bootstrap_seconds": boot.elapsed.as_secs_f64(),
+                "bootstrap_seconds": boot_elapsed.as_secs_f64(),
                 "acceptance": if proposals > 0 { accepted / proposals as f64 } else { 0.0 },
                 "effective_path_ratio": effective_path_ratio,
                 "nonzero_proposal_ratio": nonzero_proposal_ratio,
