@@ -88,18 +88,7 @@ for d in docs["mmlt"]["integrator_stats"]["per_depth"]:
     parts = ", ".join("s%d t%d %.1f%%" % (c["s"], c["t"], 100.0 * c["iterations"] / total) for c in counts)
     print("| %s | %d | %.3g | %.3g | %s | %s |" % (d["depth"], d["iterations"], d["b_bootstrap"], d["b"], pct(d["acceptance"]), parts))
 print()
-jumps = docs["rjmlt"]["integrator_stats"]["jumps"]
-print("Acceptance per path depth (RJMLT paper, Fig. 4): (a) RJMLT small steps, which keep the technique;")
-print("(b) MMLT small steps whose proposal has another technique; (c) RJMLT technique jumps. Depth 0 has one")
-print("technique. RJMLT jumps in all: %d proposed, %s accepted, %d chose the current technique, %d failed"
-      " inverses, %d regenerated paths off the original, largest |r - 1| = %.2g." % (
-      jumps["proposals"], pct(jumps["acceptance"]), jumps["to_same_technique"],
-      sum(jumps["inversion_failures"].values()), jumps["path_mismatches"], jumps["ratio_max_deviation"]))
+print("Acceptance per path depth (RJMLT paper, Fig. 4; see scripts/fig4_table.py):")
 print()
-print("| depth | (a) RJMLT small steps | (b) MMLT technique changes (proposals) | (c) RJMLT jumps (proposals) |")
-print("| ---: | ---: | ---: | ---: |")
-for m, r in zip(docs["mmlt"]["integrator_stats"]["per_depth"], docs["rjmlt"]["integrator_stats"]["per_depth"]):
-    tc, jp = m.get("technique_change") or {}, r.get("jumps") or {}
-    print("| %s | %s | %s (%s) | %s (%s) |" % (m["depth"], pct(r.get("small_step_acceptance")),
-          pct(tc.get("acceptance")), tc.get("proposals", 0), pct(jp.get("acceptance")), jp.get("proposals", 0)))
 PY
+python3 "$(dirname "$0")/fig4_table.py" "$outdir/mmlt.json" "$outdir/rjmlt.json"

@@ -152,7 +152,7 @@ pub fn parse_resolution(text: &str) -> Result<(u32, u32), String> {
     }
 }
 
-/// Runs the study: for each integrator × budget × seed, creates the integrator through the registry
+/// Runs the study: for each seed × budget × integrator, creates the integrator through the registry
 /// with `params(name)` (the scene's settings for it, or an empty table for defaults), renders with
 /// a wall-clock budget and compares with `reference`. `on_run` sees every record as it completes
 /// (the CLI prints progress from it). Every integrator is created once before rendering starts, so
@@ -177,9 +177,11 @@ pub fn run_study(
     }
     let total = config.run_count();
     let mut records = Vec::with_capacity(total);
-    for (name, integ) in &integrators {
+    // Seeds outermost and integrators innermost: the integrators compared at one budget run side by
+    // side in time, so a change of machine load during a long study hits them alike.
+    for seed in config.first_seed..config.first_seed + config.seeds {
         for &budget in &config.budgets {
-            for seed in config.first_seed..config.first_seed + config.seeds {
+            for (name, integ) in &integrators {
                 let job = RenderJob { budget: Budget::Seconds(budget), seed, threads: config.threads };
                 let start = Instant::now();
                 let out = integ

@@ -1,0 +1,33 @@
+#!/bin/sh
+# The RJMLT benchmark (issue 6): MMLT against RJMLT at equal time on three shipped scenes, 10 seeds
+# each, MSE against the path-traced references in references/ (scripts/make-references.sh), and
+# the acceptance table of the RJMLT paper's Fig. 4 on each scene.
+#
+# Usage: scripts/bench-rjmlt.sh [TIME] [SEEDS]       (defaults: 8 s per render, 10 seeds; 2 threads)
+# Writes docs/bench/rjmlt/<scene>-converge.{csv,md,png} and docs/bench/rjmlt/<scene>-fig4.md.
+# Every integrator runs with max_depth = 8 (the references' depth and the MLT default).
+# The binary is $PLEXUS if set, else the release build (built here if missing).
+set -eu
+cd "$(dirname "$0")/.."
+TIME="${1:-8}"
+SEEDS="${2:-10}"
+if [ -z "${PLEXUS:-}" ]; then
+    cargo build --release --quiet
+    PLEXUS="${CARGO_TARGET_DIR:-target}/release/plexus"
+fi
+export PLEXUS
+out=docs/bench/rjmlt
+mkdir -p "$out"
+for scene in cornell-glossy cornell-glass veach-ajar; do
+    "$PLEXUS" converge "scenes/$scene.toml" --reference "references/$scene.exr" \
+        --integrators mmlt,rjmlt --times "$TIME" --seeds "$SEEDS" --threads 2 --set max_depth=8 --out-dir "$out"
+    # The acceptance table: one render per method at the reference's resolution and the same budget.
+    res=$(python3 -c "import json; r = json.load(open('references/$scene.json'))['resolution']; print('%dx%d' % tuple(r))")
+    tmp=$(mktemp -d)
+    for method in mmlt rjmlt; do
+        "$PLEXUS" reference "scenes/$scene.toml" --integrator "$method" --time "$TIME" --seed 1 --threads 2 \
+            --resolution "$res" --set max_depth=8 --out "$tmp/$method.exr" >&2
+    done
+    python3 scripts/fig4_table.py "$tmp/mmlt.json" "$tmp/rjmlt.json" > "$out/$scene-fig4.md"
+    rm -rf "$tmp"
+done
