@@ -1,6 +1,7 @@
 #!/bin/sh
-# Regenerates the equal-time studies of docs/benchmarks.md: every listed integrator on three shipped
-# scenes, against the references in references/ (scripts/make-references.sh), at 128×128.
+# Regenerates the equal-time studies of docs/benchmarks.md: every listed integrator on four shipped
+# scenes, against the references in references/ (scripts/make-references.sh), at the references'
+# resolution (128×128; veach-ajar 160×90), every integrator with max_depth = 8 as the references.
 #
 # Usage: scripts/benchmarks.sh [INTEGRATORS] [TIMES] [SEEDS]
 #   defaults: all integrators this binary knows, budgets 1,2,4 s, 2 seeds; 2 threads.
@@ -16,8 +17,9 @@ INTEGRATORS="${1:-all}"
 TIMES="${2:-1,2,4}"
 SEEDS="${3:-2}"
 mkdir -p docs/bench docs/img
-for scene in cornell-box cornell-glossy cornell-glass; do
+for scene in cornell-box cornell-glossy cornell-glass veach-ajar; do
     "$PLEXUS" converge "scenes/$scene.toml" --reference "references/$scene.exr" \
-        --integrators "$INTEGRATORS" --times "$TIMES" --seeds "$SEEDS" --threads 2 --out-dir docs/bench
+        --integrators "$INTEGRATORS" --times "$TIMES" --seeds "$SEEDS" --threads 2 --set max_depth=8 \
+        --out-dir docs/bench
     mv "docs/bench/$scene-converge.png" "docs/img/$scene-converge.png"
 done

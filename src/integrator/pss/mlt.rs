@@ -178,6 +178,12 @@ struct PathState {
     paths_nonzero: u32,
 }
 
+/// The bootstrap's result: per depth the sum of the targets of `paths` uniform samples.
+struct Bootstrap<'a> {
+    sums: &'a [f64],
+    paths: u64,
+}
+
 /// A chain for one depth (MMLT) or for all depths (PSSMLT).
 #[derive(Clone, Debug)]
 struct SubChain {
@@ -442,6 +448,44 @@ impl Mlt {
             count_films: (self.settings.technique_count_layers && self.variant != MltVariant::Pssmlt)
                 .then(|| (0..depths).map(|d| vec![Accumulator::new(width, height); self.technique_count(d)]).collect()),
         }
+    }
+
+    /// The image of the slots' per-depth films (Sec. "Normalisation" above): depth d scaled by
+    /// n_d · b_d · P / (iterations of depth d), with b_d from the bootstrap and, with
+    /// `progressive_b`, every large step so far. Returns the b_d used. Serves the final image and
+    /// the previews during the render alike.
+    fn normalised_image(
+        &self,
+        slots: &[&SlotState],
+        bootstrap: &Bootstrap,
+        width: usize,
+        height: usize,
+    ) -> (Image, Vec<f64>) {
+        let pixels = (width * height) as f64;
+        let mut total = Accumulator::new(width, height);
+        let mut b = Vec::with_capacity(self.depth_count());
+        for d in 0..self.depth_count() {
+            let (mut sum, mut n, mut iterations) = (0.0, 0, 0);
+            for slot in slots {
+                sum += slot.large_steps[d].0;
+                n += slot.large_steps[d].1;
+                iterations += slot.iterations[d];
+            }
+            let b_d = if self.settings.progressive_b {
+                (bootstrap.sums[d] + sum) / (bootstrap.paths + n) as f64
+            } else {
+                bootstrap.sums[d] / bootstrap.paths as f64
+            };
+            b.push(b_d);
+            if iterations == 0 {
+                continue;
+            }
+            let scale = self.technique_count(d) as f64 * b_d * pixels / iterations as f64;
+            for slot in slots {
+                total.merge_scaled(&slot.films[d], scale);
+            }
+        }
+        (total.to_image(1.0), b)
     }
 
     /// One Metropolis iteration of sub-chain `d`: a large or small step of the primary samples
@@ -889,26 +933,8 @@ impl Integrator for Mlt {
                 a.merge(b);
             }
         }
-        let b_final: Vec<f64> = (0..depths)
-            .map(|d| {
-                let (sum, n) = merged.large_steps[d];
-                if self.settings.progressive_b {
-                    (boot_sums[d] + sum) / (n_boot + n) as f64
-                } else {
-                    b_boot[d]
-                }
-            })
-            .collect();
-        let mut total = Accumulator::new(width, height);
-        for d in 0..depths {
-            let iters = merged.iterations[d];
-            if iters == 0 {
-                continue;
-            }
-            let scale = self.technique_count(d) as f64 * b_final[d] * pixels as f64 / iters as f64;
-            total.merge_scaled(&merged.films[d], scale);
-        }
-        let image = total.to_image(1.0);
+        let bootstrap = Bootstrap { sums: &boot_sums, paths: n_boot };
+        let (image, b_final) = self.normalised_image(&[&merged], &bootstrap, width, height);
 
         let mut layers = Vec::new();
         if let Some(films) = merged.count_films.as_ref() {
