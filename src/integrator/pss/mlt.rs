@@ -40,7 +40,7 @@ use std::time::Instant;
 use glam::Vec2;
 use serde::{Deserialize, Serialize};
 
-use super::inverse::{invert_technique, InversionFailure};
+use super::inverse::{invert_technique, same_path, InversionFailure};
 use super::jump::{jump_acceptance, JumpSide};
 use super::sampler::{MutationSettings, PssSampler};
 use crate::film::{Accumulator, Image};
@@ -91,12 +91,6 @@ impl MltVariant {
 pub const RJMLT_LARGE_STEP_PROBABILITY: f64 = 0.1;
 /// RJMLT's default probability of a technique jump.
 pub const RJMLT_JUMP_PROBABILITY: f64 = 0.05;
-
-/// Relative distance (to the adjacent segments' lengths) within which a path regenerated from its
-/// inverted primary samples counts as the same path. The round trip loses a few f32 ulps per
-/// vertex (direction maps, ray offsets), amplified along the walk; a different surface hit or a
-/// missed one is off by a whole segment.
-const SAME_PATH_TOLERANCE: f32 = 1e-3;
 
 /// Settings of `integrator = "pssmlt"` and `"mmlt"` (defaults: the MMLT paper, Sec. 5).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -707,36 +701,6 @@ fn techniques_of_subpaths(light: usize, camera: usize, max_depth: usize) -> u32 
         }
     }
     n
-}
-
-/// Whether a path regenerated from inverted primary samples is the path it was inverted from:
-/// the same number of vertices, each within `SAME_PATH_TOLERANCE` of the shorter adjacent segment
-/// (directions for vertices at infinity).
-fn same_path(a: &[Vertex], b: &[Vertex]) -> bool {
-    if a.len() != b.len() || a.is_empty() {
-        return false;
-    }
-    let segment = |path: &[Vertex], k: usize| -> f32 {
-        let mut len = f32::INFINITY;
-        for m in [k.wrapping_sub(1), k + 1] {
-            if let Some(v) = path.get(m) {
-                if !v.infinite && !path[k].infinite {
-                    len = len.min(v.p.distance(path[k].p));
-                }
-            }
-        }
-        len
-    };
-    a.iter().zip(b).enumerate().all(|(k, (x, y))| {
-        if x.infinite != y.infinite || (x.kind != y.kind && k > 0 && k + 1 < a.len()) {
-            return false;
-        }
-        if x.infinite {
-            x.dir.dot(y.dir) >= 1.0 - SAME_PATH_TOLERANCE * SAME_PATH_TOLERANCE
-        } else {
-            x.p.distance(y.p) <= SAME_PATH_TOLERANCE * segment(b, k)
-        }
-    })
 }
 
 impl Integrator for Mlt {
