@@ -546,7 +546,7 @@ impl Mlt {
             self.splat(d, &chain.current, 1.0 - a, slot);
         }
         slot.iterations[d] += 1;
-        let accepted = (rng.uniform() as f32) < a;
+        let accepted = rng.uniform() < a;
         let tally = |count: &mut AcceptanceCount| {
             count.proposed += 1;
             if accepted {

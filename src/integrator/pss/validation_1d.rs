@@ -79,7 +79,7 @@ impl Techniques {
             _ => {
                 let (component, _, _) = self.mixture.sample_discrete(u[0] as f32);
                 if component == 0 {
-                    invert_monotone(|x| sinusoid_cdf(x), u[1])
+                    invert_monotone(sinusoid_cdf, u[1])
                 } else {
                     u[1].sqrt()
                 }
