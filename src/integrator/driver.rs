@@ -57,8 +57,11 @@ pub enum Passes {
     /// Exactly this many passes.
     Count(u64),
     /// Passes until this many seconds have elapsed since the run started: a new pass starts only
-    /// if the mean pass duration so far predicts it ends before the deadline (at least one pass
-    /// always runs).
+    /// if it is predicted to end before the deadline (at least one pass always runs). The
+    /// prediction is the longer of the last pass and the mean pass: the last follows a change of
+    /// the machine's load or of the work (a chain segment meeting long paths), the mean keeps one
+    /// fast pass from starting a slow one; the first pass, slow with thread start-up and cold
+    /// caches, only counts through the mean.
     Seconds(f64),
 }
 
@@ -172,18 +175,20 @@ impl Driver {
 
         let seed = self.seed;
         let mut pass = 0u64;
+        let mut last_pass = 0.0f64;
         loop {
             let go = match passes {
                 Passes::Count(n) => pass < n,
                 Passes::Seconds(limit) => {
                     let elapsed = start.elapsed().as_secs_f64();
-                    pass == 0 || elapsed + elapsed / pass as f64 <= limit
+                    pass == 0 || elapsed + last_pass.max(elapsed / pass as f64) <= limit
                 }
             };
             if !go || unit_count == 0 {
                 break;
             }
             let kernel = &kernel;
+            let pass_start = Instant::now();
             self.pool.scope(|scope| {
                 for (slot, slot_units) in per_slot.iter_mut() {
                     scope.spawn(move |_| {
@@ -195,6 +200,7 @@ impl Driver {
                     });
                 }
             });
+            last_pass = pass_start.elapsed().as_secs_f64();
             pass += 1;
         }
 
@@ -256,8 +262,8 @@ impl ImagePlan {
     /// Tiles the `width`×`height` film. For `Budget::SamplesPerPixel(n)` the passes take
     /// `spp_per_pass` samples each (as many as make a pass hold about 2^16 pixel samples, but never
     /// more than `n`), the last pass fewer if needed; the image is the per-pixel mean. For a time
-    /// budget every pass takes the same count, so the image stays the mean of equally many samples
-    /// at every pixel.
+    /// budget every pass takes one sample per pixel, so the image stays the mean of equally many
+    /// samples at every pixel and the budget is overrun by less than one such pass.
     pub fn new(width: u32, height: u32, budget: Budget) -> ImagePlan {
         let mut tiles = Vec::new();
         for y0 in (0..height).step_by(TILE_SIZE as usize) {
@@ -272,9 +278,7 @@ impl ImagePlan {
                 let spp_per_pass = per_pass.min(n.max(1));
                 ImagePlan { tiles, spp_per_pass, passes: Passes::Count(n.div_ceil(spp_per_pass)), total_spp: Some(n) }
             }
-            Budget::Seconds(s) => {
-                ImagePlan { tiles, spp_per_pass: per_pass, passes: Passes::Seconds(s), total_spp: None }
-            }
+            Budget::Seconds(s) => ImagePlan { tiles, spp_per_pass: 1, passes: Passes::Seconds(s), total_spp: None },
         }
     }
 
