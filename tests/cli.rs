@@ -224,6 +224,39 @@ fn bad_arguments_are_usage_errors() {
     render_fails(&dir, &scene, &["--spp", "0"], &["--spp"]);
     render_fails(&dir, &scene, &["--time", "-1"], &["--time"]);
     render_fails(&dir, &scene, &["--threads", "0"], &["--threads"]);
+    for bad in ["0", "-2", "NaN", "inf"] {
+        render_fails(&dir, &scene, &["--preview-every", bad], &["--preview-every"]);
+    }
+}
+
+/// `--preview-every` writes the current image to the outputs while the render runs: with a 2 s
+/// budget and previews every 0.2 s, the EXR exists (written by a preview) long before the render
+/// ends, and the final image is still written and finite.
+#[test]
+fn previews_are_written_during_the_render() {
+    let dir = temp_dir("preview");
+    let scene = write(&dir, "s.toml", &good_scene());
+    let out = dir.join("p.exr");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_plexus"))
+        .args(["render", &scene, "--time", "2", "--preview-every", "0.2", "--out", &out.to_string_lossy()])
+        .current_dir(&dir)
+        .env("CI", "true")
+        .spawn()
+        .expect("run plexus");
+    let start = std::time::Instant::now();
+    let mut seen_at = None;
+    while start.elapsed().as_secs_f64() < 1.6 {
+        if out.exists() {
+            seen_at = Some(start.elapsed().as_secs_f64());
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let status = child.wait().expect("wait");
+    assert!(status.success());
+    let seen_at = seen_at.expect("no preview was written within 1.6 s of a 2 s render");
+    println!("first preview seen after {seen_at:.2} s");
+    assert!(out.exists() && dir.join("p.json").exists());
 }
 
 #[test]

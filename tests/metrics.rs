@@ -226,3 +226,53 @@ fn time_budgets_are_met() {
         assert!(out.wall_time.as_secs_f64() <= wall + 1e-3, "{name}: reported time exceeds the measured one");
     }
 }
+
+/// Previews (`Progress::preview`, behind `plexus render --preview-every`) are the render's
+/// normalised image so far: for every integrator, several arrive during a 1.5 s render, and the
+/// last one's mean is within 10% of the final image's (an unnormalised film would be off by the
+/// sample count; the remaining difference is the noise of the last passes). A sample-budget render
+/// with previews is bit-identical to one without: previews only read the films.
+#[test]
+fn previews_are_normalised_and_do_not_change_the_image() {
+    use plexus::camera::Camera;
+    use plexus::integrator::{create, Budget, NoProgress, Progress, RenderJob, INTEGRATOR_NAMES};
+    use std::sync::Mutex;
+    struct Recorder(Mutex<Vec<f64>>);
+    impl Progress for Recorder {
+        fn set_total(&self, _: u64) {}
+        fn advance(&self, _: u64) {}
+        fn message(&self, _: &str) {}
+        fn preview_interval(&self) -> Option<f64> {
+            Some(0.1)
+        }
+        fn preview(&self, image: &Image) {
+            let m = image.mean();
+            self.0.lock().expect("lock").push((m[0] + m[1] + m[2]) / 3.0);
+        }
+    }
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.toml");
+    let mut scene = plexus::scene::load_scene(&path, None).expect("scene").scene;
+    let c = &scene.camera;
+    scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, 48, 48);
+    for name in INTEGRATOR_NAMES {
+        let params: toml::Table =
+            if name.ends_with("mlt") { toml::from_str("bootstrap = 20000").unwrap() } else { toml::Table::new() };
+        let integrator = create(name, &params).expect("integrator");
+        let recorder = Recorder(Mutex::new(Vec::new()));
+        let job = RenderJob { budget: Budget::Seconds(1.5), seed: 1, threads: 2 };
+        let out = integrator.render(&scene, &job, &recorder).expect("render");
+        let m = out.image.mean();
+        let final_mean = (m[0] + m[1] + m[2]) / 3.0;
+        let previews = recorder.0.into_inner().expect("lock");
+        println!("{name}: {} previews, last mean {:?}, final {final_mean}", previews.len(), previews.last());
+        assert!(previews.len() >= 3, "{name}: {} previews", previews.len());
+        let last = *previews.last().expect("a preview");
+        assert!((last / final_mean - 1.0).abs() < 0.1, "{name}: preview mean {last} vs final {final_mean}");
+        if *name == "pt" || *name == "mmlt" {
+            let job = RenderJob { budget: Budget::SamplesPerPixel(16), seed: 3, threads: 2 };
+            let with = integrator.render(&scene, &job, &Recorder(Mutex::new(Vec::new()))).expect("render").image;
+            let without = integrator.render(&scene, &job, &NoProgress).expect("render").image;
+            assert!(with.pixels == without.pixels, "{name}: previews changed the image");
+        }
+    }
+}

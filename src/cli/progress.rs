@@ -2,10 +2,19 @@
 //! budgets. Hidden when stderr is not a terminal or when `CI=true`, so logs stay clean.
 
 use std::io::IsTerminal;
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use plexus::film::oiio::{write_image, WriteOptions};
+use plexus::film::Image;
 use plexus::integrator::Progress;
+
+/// `--preview-every`: write the current image to the render's outputs this often.
+pub struct Previews {
+    pub every_seconds: f64,
+    pub outputs: Vec<PathBuf>,
+}
 
 /// An indicatif bar driven by an integrator's `Progress` calls.
 pub struct BarProgress {
@@ -13,6 +22,7 @@ pub struct BarProgress {
     /// For time budgets: the budget, against which the bar advances with the clock.
     time_budget: Option<Duration>,
     start: Instant,
+    previews: Option<Previews>,
 }
 
 /// Whether a progress bar should be drawn at all.
@@ -39,7 +49,13 @@ impl BarProgress {
             bar.set_length(budget.as_millis().max(1) as u64);
         }
         bar.enable_steady_tick(Duration::from_millis(200));
-        BarProgress { bar, time_budget, start: Instant::now() }
+        BarProgress { bar, time_budget, start: Instant::now(), previews: None }
+    }
+
+    /// Also write previews during the render.
+    pub fn with_previews(mut self, previews: Option<Previews>) -> BarProgress {
+        self.previews = previews;
+        self
     }
 
     /// Removes the bar from the terminal.
@@ -67,5 +83,19 @@ impl Progress for BarProgress {
     }
     fn message(&self, msg: &str) {
         self.bar.set_message(msg.to_string());
+    }
+    fn preview_interval(&self) -> Option<f64> {
+        self.previews.as_ref().map(|p| p.every_seconds)
+    }
+    /// Writes the preview to every output (each through a temporary file and a rename, so a
+    /// viewer never sees half an image). A failed write is reported on the bar, not fatal: the
+    /// final image is written (and its errors reported) when the render ends.
+    fn preview(&self, image: &Image) {
+        let Some(previews) = &self.previews else { return };
+        for path in &previews.outputs {
+            if let Err(e) = write_image(path, image, &WriteOptions::default()) {
+                self.bar.set_message(format!("preview not written: {e}"));
+            }
+        }
     }
 }

@@ -13,7 +13,7 @@ use plexus::integrator::{self, Budget, RenderJob, INTEGRATOR_NAMES};
 use plexus::scene::{builtin_cornell_box, load_scene, LoadedScene};
 
 use super::bad_input;
-use super::progress::{bar_wanted, BarProgress};
+use super::progress::{bar_wanted, BarProgress, Previews};
 use super::stats_json::{self, RenderStats};
 
 /// Samples per pixel when neither the command line nor the scene gives a budget.
@@ -51,6 +51,10 @@ pub struct RenderArgs {
     /// Integrator setting, as a TOML value (e.g. --set max_depth=8); repeatable.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
+    /// During the render, write the current image to the outputs at most every SECONDS seconds
+    /// (between passes), so a long render can be watched.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub preview_every: Option<f64>,
 }
 
 /// Everything resolved from the arguments and the scene before rendering.
@@ -69,6 +73,11 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     if let Some(n) = args.threads {
         if n == 0 {
             return Err(bad_input("--threads must be at least 1"));
+        }
+    }
+    if let Some(s) = args.preview_every {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(bad_input(format!("--preview-every must be a positive number of seconds, got {s}")));
         }
     }
 
@@ -94,7 +103,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
             Budget::SamplesPerPixel(_) => None,
         },
         bar_wanted(),
-    );
+    )
+    .with_previews(args.preview_every.map(|every_seconds| Previews { every_seconds, outputs: plan.outputs.clone() }));
     let output = integrator.render(scene, &job, &progress);
     progress.finish();
     let output = output?;

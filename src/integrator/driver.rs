@@ -40,7 +40,7 @@ use std::time::{Duration, Instant};
 use rayon::{ThreadPool, ThreadPoolBuilder};
 
 use super::{Budget, Progress, RenderError, RenderJob};
-use crate::film::Accumulator;
+use crate::film::{Accumulator, Image};
 use crate::sampling::Rng;
 use crate::stats::Counters;
 
@@ -63,6 +63,24 @@ pub enum Passes {
     /// fast pass from starting a slow one; the first pass, slow with thread start-up and cold
     /// caches, only counts through the mean.
     Seconds(f64),
+    /// Passes until this instant, by the same rule as `Seconds`: for integrators that work before
+    /// the run (MLT's bootstrap) and must fit the whole render into the user's budget.
+    Deadline(Instant),
+}
+
+impl Passes {
+    /// This schedule with a `Seconds` budget counted from `start` (when the render began, before
+    /// its setup) instead of from the start of the run, so that setup is inside the budget.
+    pub fn counted_from(self, start: Instant) -> Passes {
+        match self {
+            Passes::Seconds(s) => match Duration::try_from_secs_f64(s.max(0.0)).ok().and_then(|d| start.checked_add(d))
+            {
+                Some(at) => Passes::Deadline(at),
+                None => self,
+            },
+            other => other,
+        }
+    }
 }
 
 /// One work item: which pass and which unit, and its random stream.
@@ -151,9 +169,32 @@ impl Driver {
     ) -> RunOutput<U, S>
     where
         U: Send,
-        S: Send,
+        S: Send + Sync,
         K: Fn(&WorkItem, &mut U, &mut Slot<S>) -> u64 + Sync,
     {
+        self.run_with_preview(units, passes, progress, init_slot, kernel, None)
+    }
+
+    /// `run`, and when `progress` asks for previews (`Progress::preview_interval`), between passes
+    /// at most that often: `snapshot(slots, passes done)` builds the current normalised image from
+    /// the slots, which `progress.preview` receives. Previews only read the films, so the image
+    /// and its determinism do not depend on them.
+    pub fn run_with_preview<U, S, K>(
+        &self,
+        units: Vec<U>,
+        passes: Passes,
+        progress: &dyn Progress,
+        init_slot: impl Fn(usize) -> S,
+        kernel: K,
+        snapshot: Option<&Snapshot<'_, S>>,
+    ) -> RunOutput<U, S>
+    where
+        U: Send,
+        S: Send + Sync,
+        K: Fn(&WorkItem, &mut U, &mut Slot<S>) -> u64 + Sync,
+    {
+        let preview_every = progress.preview_interval().filter(|s| s.is_finite() && *s > 0.0);
+        let mut last_preview = Instant::now();
         let start = Instant::now();
         let unit_count = units.len();
         let threads = self.threads;
@@ -174,14 +215,22 @@ impl Driver {
         }
 
         let seed = self.seed;
+        // The instant by which passes must end; `None` for pass counts, and for a budget beyond what
+        // an `Instant` can hold (which then never ends a pass loop early).
+        let deadline = match passes.counted_from(start) {
+            Passes::Deadline(at) => Some(at),
+            _ => None,
+        };
         let mut pass = 0u64;
         let mut last_pass = 0.0f64;
         loop {
             let go = match passes {
                 Passes::Count(n) => pass < n,
-                Passes::Seconds(limit) => {
-                    let elapsed = start.elapsed().as_secs_f64();
-                    pass == 0 || elapsed + last_pass.max(elapsed / pass as f64) <= limit
+                Passes::Seconds(_) | Passes::Deadline(_) => {
+                    let mean = start.elapsed().as_secs_f64() / pass.max(1) as f64;
+                    let predicted = Duration::from_secs_f64(last_pass.max(mean));
+                    pass == 0
+                        || deadline.is_none_or(|at| Instant::now().checked_add(predicted).is_some_and(|end| end <= at))
                 }
             };
             if !go || unit_count == 0 {
@@ -202,6 +251,13 @@ impl Driver {
             });
             last_pass = pass_start.elapsed().as_secs_f64();
             pass += 1;
+            if let (Some(every), Some(snapshot)) = (preview_every, snapshot) {
+                if last_preview.elapsed().as_secs_f64() >= every {
+                    let slots: Vec<&Slot<S>> = per_slot.iter().map(|(slot, _)| slot).collect();
+                    progress.preview(&snapshot(&slots, pass));
+                    last_preview = Instant::now();
+                }
+            }
         }
 
         let mut film = Accumulator::new(self.width, self.height);
@@ -225,6 +281,20 @@ impl Driver {
         }
     }
 }
+
+/// The image of integrators whose result is the slots' summed film times `scale` (the path
+/// tracer, BDPT, light tracing: `scale` = 1 / samples per pixel so far), for previews.
+pub fn scaled_film_image<S>(slots: &[&Slot<S>], scale: f64) -> Image {
+    let Some(first) = slots.first() else { return Image::new(0, 0) };
+    let mut film = Accumulator::new(first.film.width, first.film.height);
+    for slot in slots {
+        film.merge(&slot.film);
+    }
+    film.to_image(scale)
+}
+
+/// Builds a preview image from the slots and the number of passes done (see `run_with_preview`).
+pub type Snapshot<'a, S> = dyn Fn(&[&Slot<S>], u64) -> Image + 'a;
 
 /// A rectangle of pixels `[x0, x1) × [y0, y1)`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -365,6 +435,67 @@ mod tests {
         );
         assert!(out.passes >= 1);
         assert!(t.elapsed().as_secs_f64() < 1.0);
+    }
+
+    /// A kernel of 4 units × 5 ms on 2 threads: a pass takes about 10 ms.
+    fn sleepy_run(passes: Passes, progress: &dyn Progress) -> RunOutput<(), ()> {
+        let driver = Driver::new(&job(2, 1), 4, 4).expect("pool");
+        driver.run_with_preview(
+            vec![(); 4],
+            passes,
+            progress,
+            |_| (),
+            |_, _, slot| {
+                std::thread::sleep(Duration::from_millis(5));
+                slot.film.add(0, 0, Rgb::ONE);
+                1
+            },
+            // Four units per pass each add 1 to pixel (0, 0).
+            Some(&|slots: &[&Slot<()>], passes: u64| scaled_film_image(slots, 1.0 / (4 * passes) as f64)),
+        )
+    }
+
+    /// A deadline ends the run within one pass of it (the prediction is at least the last pass);
+    /// the 50 ms tolerance is a few passes of scheduling noise on a loaded machine. A deadline that
+    /// has already passed (setup took the whole budget) still runs one pass, so there is an image.
+    #[test]
+    fn deadline_is_kept_and_one_pass_always_runs() {
+        let start = Instant::now();
+        let out = sleepy_run(Passes::Deadline(start + Duration::from_millis(200)), &NoProgress);
+        let took = start.elapsed().as_secs_f64();
+        assert!(out.passes >= 5, "{} passes", out.passes);
+        assert!(took <= 0.25, "{took:.3} s for a 0.2 s deadline");
+        let out = sleepy_run(Passes::Deadline(Instant::now()), &NoProgress);
+        assert_eq!(out.passes, 1);
+        let Passes::Deadline(at) = Passes::Seconds(1.0).counted_from(start) else { panic!("a deadline") };
+        assert_eq!(at, start + Duration::from_secs(1));
+        assert_eq!(Passes::Count(3).counted_from(start), Passes::Count(3));
+    }
+
+    /// Previews arrive between passes, at most once per interval, and show the normalised image
+    /// so far (pixel (0, 0) gets 1 per item, so the preview reads 1).
+    #[test]
+    fn previews_are_rate_limited_and_normalised() {
+        use std::sync::Mutex;
+        struct Recorder(Mutex<Vec<(Instant, f32)>>);
+        impl Progress for Recorder {
+            fn set_total(&self, _: u64) {}
+            fn advance(&self, _: u64) {}
+            fn message(&self, _: &str) {}
+            fn preview_interval(&self) -> Option<f64> {
+                Some(0.05)
+            }
+            fn preview(&self, image: &Image) {
+                self.0.lock().expect("lock").push((Instant::now(), image.pixels[0].x));
+            }
+        }
+        let recorder = Recorder(Mutex::new(Vec::new()));
+        let out = sleepy_run(Passes::Count(30), &recorder);
+        let previews = recorder.0.into_inner().expect("lock");
+        // 30 passes of ≥ 10 ms are ≥ 0.3 s: at least 4 intervals of 50 ms, at most one per pass.
+        assert!(previews.len() >= 4 && (previews.len() as u64) < out.passes, "{} previews", previews.len());
+        assert!(previews.iter().all(|&(_, v)| (v - 1.0).abs() < 1e-6), "{previews:?}");
+        assert!(previews.windows(2).all(|w| (w[1].0 - w[0].0).as_secs_f64() >= 0.05));
     }
 
     #[test]

@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use super::bdpt::connect::connect_to_camera;
 use super::bdpt::{generate_light_subpath, BdptContext, MisHeuristic, Vertex};
-use super::driver::{Driver, ImagePlan};
+use super::driver::{scaled_film_image, Driver, ImagePlan, Slot};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
@@ -66,6 +66,8 @@ impl Integrator for LightTracer {
     }
 
     fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
+        // The budget and the reported time include the setup before the driver runs.
+        let started = std::time::Instant::now();
         let (width, height) = (scene.camera.width, scene.camera.height);
         let plan = ImagePlan::new(width, height, job.budget);
         if let Some(spp) = plan.total_spp {
@@ -74,9 +76,12 @@ impl Integrator for LightTracer {
         let driver = Driver::new(job, width, height)?;
         let ctx = BdptContext::new(scene, self.settings.rr_depth as usize, MisHeuristic::None);
         let max_vertices = self.settings.max_depth as usize + 1;
-        let out = driver.run(
+        let preview = |slots: &[&Slot<Vec<Vertex>>], passes: u64| {
+            scaled_film_image(slots, 1.0 / plan.spp_after(passes).max(1) as f64)
+        };
+        let out = driver.run_with_preview(
             plan.tiles.clone(),
-            plan.passes,
+            plan.passes.counted_from(started),
             progress,
             |_| Vec::<Vertex>::new(),
             |item, tile, slot| {
@@ -103,6 +108,7 @@ impl Integrator for LightTracer {
                 slot.counters.samples += paths;
                 paths
             },
+            Some(&preview),
         );
         let spp = plan.spp_after(out.passes);
         let image = out.film.to_image(if spp > 0 { 1.0 / spp as f64 } else { 0.0 });
@@ -110,7 +116,7 @@ impl Integrator for LightTracer {
             image,
             layers: Vec::new(),
             counters: out.counters,
-            wall_time: out.elapsed,
+            wall_time: started.elapsed(),
             extra_stats: serde_json::json!({
                 "light_paths_per_pixel": spp,
                 "passes": out.passes,

@@ -45,6 +45,14 @@ pub trait Progress: Sync {
     fn advance(&self, units: u64);
     /// A short status line (e.g. an MCMC acceptance rate).
     fn message(&self, msg: &str);
+    /// Seconds between preview images during a render (`plexus render --preview-every`); `None`
+    /// (the default) for no previews, which then cost nothing.
+    fn preview_interval(&self) -> Option<f64> {
+        None
+    }
+    /// Receives the render's current normalised image, between passes, at most every
+    /// `preview_interval` seconds.
+    fn preview(&self, _image: &Image) {}
 }
 
 /// A `Progress` that ignores everything.

@@ -15,7 +15,7 @@
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
-use super::driver::{Driver, ImagePlan};
+use super::driver::{scaled_film_image, Driver, ImagePlan, Slot};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::geometry::Ray;
 use crate::material::TransportMode;
@@ -261,15 +261,19 @@ impl Integrator for PathTracer {
     }
 
     fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
+        // The budget and the reported time include the setup before the driver runs.
+        let started = std::time::Instant::now();
         let (width, height) = (scene.camera.width, scene.camera.height);
         let plan = ImagePlan::new(width, height, job.budget);
         if let Some(spp) = plan.total_spp {
             progress.set_total(spp * width as u64 * height as u64);
         }
         let driver = Driver::new(job, width, height)?;
-        let out = driver.run(
+        let preview =
+            |slots: &[&Slot<()>], passes: u64| scaled_film_image(slots, 1.0 / plan.spp_after(passes).max(1) as f64);
+        let out = driver.run_with_preview(
             plan.tiles.clone(),
-            plan.passes,
+            plan.passes.counted_from(started),
             progress,
             |_| (),
             |item, tile, slot| {
@@ -287,6 +291,7 @@ impl Integrator for PathTracer {
                 slot.counters.samples += samples;
                 samples
             },
+            Some(&preview),
         );
         let spp = plan.spp_after(out.passes);
         let image = out.film.to_image(if spp > 0 { 1.0 / spp as f64 } else { 0.0 });
@@ -294,7 +299,7 @@ impl Integrator for PathTracer {
             image,
             layers: Vec::new(),
             counters: out.counters,
-            wall_time: out.elapsed,
+            wall_time: started.elapsed(),
             extra_stats: serde_json::json!({
                 "spp": spp,
                 "passes": out.passes,

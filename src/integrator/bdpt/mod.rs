@@ -33,7 +33,7 @@ pub use subpath::{
 };
 pub use vertex::{Vertex, VertexKind};
 
-use super::driver::{Driver, ImagePlan};
+use super::driver::{scaled_film_image, Driver, ImagePlan, Slot};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::film::{Accumulator, Image};
 use crate::sampling::Rng;
@@ -255,6 +255,8 @@ impl Integrator for Bdpt {
     }
 
     fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
+        // The budget and the reported time include the setup before the driver runs.
+        let started = std::time::Instant::now();
         let (width, height) = (scene.camera.width, scene.camera.height);
         let plan = ImagePlan::new(width, height, job.budget);
         if let Some(spp) = plan.total_spp {
@@ -263,9 +265,12 @@ impl Integrator for Bdpt {
         let driver = Driver::new(job, width, height)?;
         let ctx = self.context(scene);
         let technique_depth = (self.settings.technique_max_depth.min(self.settings.max_depth)) as usize;
-        let out = driver.run(
+        let preview = |slots: &[&Slot<BdptSlot>], passes: u64| {
+            scaled_film_image(slots, 1.0 / plan.spp_after(passes).max(1) as f64)
+        };
+        let out = driver.run_with_preview(
             plan.tiles.clone(),
-            plan.passes,
+            plan.passes.counted_from(started),
             progress,
             |_| BdptSlot {
                 camera: Vec::new(),
@@ -295,6 +300,7 @@ impl Integrator for Bdpt {
                 slot.counters.samples += samples;
                 samples
             },
+            Some(&preview),
         );
         let spp = plan.spp_after(out.passes);
         let scale = if spp > 0 { 1.0 / spp as f64 } else { 0.0 };
@@ -330,7 +336,7 @@ impl Integrator for Bdpt {
             image,
             layers,
             counters: out.counters,
-            wall_time: out.elapsed,
+            wall_time: started.elapsed(),
             extra_stats: serde_json::json!({
                 "spp": spp,
                 "passes": out.passes,

@@ -49,7 +49,7 @@ use crate::integrator::bdpt::{
     connect_all, evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch,
     FilmRegion, MisHeuristic, Vertex,
 };
-use crate::integrator::driver::{Driver, Passes};
+use crate::integrator::driver::{Driver, Passes, Slot};
 use crate::integrator::{settings_from_table, Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::{Distribution1D, Rng};
 use crate::scene::Scene;
@@ -834,7 +834,12 @@ impl Integrator for Mlt {
             Budget::Seconds(s) => Passes::Seconds((s - render_start.elapsed().as_secs_f64()).max(0.0)),
         };
         progress.message("mutating");
-        let out = driver.run(
+        let bootstrap = Bootstrap { sums: &boot_sums, paths: n_boot };
+        let preview = |slots: &[&Slot<SlotState>], _passes: u64| {
+            let states: Vec<&SlotState> = slots.iter().map(|slot| &slot.state).collect();
+            self.normalised_image(&states, &bootstrap, width, height).0
+        };
+        let out = driver.run_with_preview(
             units,
             passes,
             progress,
@@ -857,6 +862,7 @@ impl Integrator for Mlt {
                 }
                 segment
             },
+            Some(&preview),
         );
 
         // Merge the slots in slot order (deterministic) and normalise each depth.
@@ -897,7 +903,6 @@ impl Integrator for Mlt {
                 a.merge(b);
             }
         }
-        let bootstrap = Bootstrap { sums: &boot_sums, paths: n_boot };
         let (image, b_final) = self.normalised_image(&[&merged], &bootstrap, width, height);
 
         let mut layers = Vec::new();
