@@ -566,8 +566,11 @@ mod tests {
                 })
             })
             .collect();
+        // Within a few ulps, not exactly: Embree picks its kernels by ISA at run time; on an AMD
+        // EPYC (AVX2) it returns 0.99999994 where the machine this test was written on gave 1.0.
         for h in handles {
-            assert_eq!(h.join().unwrap(), Some(1.0));
+            let t = h.join().unwrap().expect("every ray points at the quad");
+            assert!((t - 1.0).abs() < 1e-6, "t = {t}");
         }
     }
 }

@@ -391,7 +391,7 @@ fn choose_lobe(probs: &[f32], u: f32) -> Option<usize> {
 
 /// The interval of u[0] that `choose_lobe` maps to lobe `t`, computed with the same summation.
 fn lobe_interval(probs: &[f32], t: usize) -> Option<(f32, f32)> {
-    if probs.get(t).map_or(true, |&p| !(p > 0.0)) {
+    if probs.get(t).is_none_or(|&p| !(p > 0.0)) {
         return None;
     }
     let lo: f32 = probs[..t].iter().filter(|&&p| p > 0.0).sum();

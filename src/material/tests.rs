@@ -6,7 +6,7 @@
 use glam::{DVec3, Vec3};
 
 use super::*;
-use crate::sampling::chi2::{chi2_1d, chi2_test, jacobian_det_surface, Chi2Config};
+use crate::sampling::chi2::{chi2_1d, chi2_test, chi2_test_bin_masses, jacobian_det_surface, Chi2Config};
 use crate::sampling::Rng;
 
 /// Number of chi-square tests (2D goodness of fit and 1D/2D tests of inverted uniforms) in this
@@ -85,7 +85,7 @@ impl CapParam {
         Some([s, phi])
     }
     /// Direction and da/ds at parameter p.
-    fn from_param(&self, p: [f64; 2]) -> (Vec3, f64) {
+    fn direction_at(&self, p: [f64; 2]) -> (Vec3, f64) {
         let ks = (p[0] * self.ln_k).exp();
         let a = 2.0 * (ks - 1.0) / (self.k - 1.0);
         let da_ds = 2.0 * self.ln_k * ks / (self.k - 1.0);
@@ -96,14 +96,17 @@ impl CapParam {
     }
 }
 
+/// 24×24 bins of ~100 expected samples each: a bin mass wrong by 1e-6 moves its expectation by
+/// 0.06, so the quadrature needs no tighter tolerance than that (1e-7 and 10 bisections, 8× slower,
+/// moved no χ² statistic of the 32 material tests by more than 0.3).
 fn chi2_cfg() -> Chi2Config {
     Chi2Config {
         res: [24, 24],
         samples: 60_000,
         test_count: CHI2_TESTS_MATERIAL,
-        quad_eps: 1e-7,
+        quad_eps: 1e-6,
         min_depth: 2,
-        max_depth: 10,
+        max_depth: 7,
         ..Chi2Config::default()
     }
 }
@@ -119,7 +122,7 @@ fn chi2_material(m: &Material, wo: Vec3, seed: u64) -> crate::sampling::chi2::Ch
         seed,
         |rng| m.sample(wo, rng_u3(rng), MODE).and_then(|s| cap.to_param(s.wi)),
         |p| {
-            let (w, jac) = cap.from_param(p);
+            let (w, jac) = cap.direction_at(p);
             f64::from(m.pdf(wo, w, MODE)) * jac
         },
     )
@@ -145,25 +148,21 @@ fn chi2_diffuse() {
 }
 
 #[test]
-#[ignore = "not yet seen to complete within the test-time budget on the 2-core machine; run with --ignored (open in issue 3)"]
 fn chi2_conductor_rough() {
     run_chi2("conductor", &[(0.3, conductor(0.3)), (1.0, conductor(1.0))]);
 }
 
 #[test]
-#[ignore = "not yet seen to complete within the test-time budget on the 2-core machine; run with --ignored (open in issue 3)"]
 fn chi2_conductor_smooth() {
     run_chi2("conductor", &[(1e-3, conductor(1e-3)), (0.05, conductor(0.05))]);
 }
 
 #[test]
-#[ignore = "not yet seen to complete within the test-time budget on the 2-core machine; run with --ignored (open in issue 3)"]
 fn chi2_plastic_rough() {
     run_chi2("plastic", &[(0.3, plastic(0.3)), (1.0, plastic(1.0))]);
 }
 
 #[test]
-#[ignore = "not yet seen to complete within the test-time budget on the 2-core machine; run with --ignored (open in issue 3)"]
 fn chi2_plastic_smooth() {
     run_chi2("plastic", &[(1e-3, plastic(1e-3)), (0.05, plastic(0.05))]);
 }
@@ -183,7 +182,7 @@ fn chi2_rejects_wrong_bsdf_pdf() {
         5,
         |rng| sampled.sample(wo, rng_u3(rng), MODE).and_then(|s| cap.to_param(s.wi)),
         |p| {
-            let (w, jac) = cap.from_param(p);
+            let (w, jac) = cap.direction_at(p);
             f64::from(claimed.pdf(wo, w, MODE)) * jac
         },
     );
@@ -196,7 +195,7 @@ fn chi2_rejects_wrong_bsdf_pdf() {
         6,
         |rng| diffuse.sample(wo, rng_u3(rng), MODE).and_then(|s| cap.to_param(s.wi)),
         |p| {
-            let (w, jac) = cap.from_param(p);
+            let (w, jac) = cap.direction_at(p);
             if w.z > 0.0 {
                 jac / (2.0 * std::f64::consts::PI)
             } else {
@@ -391,32 +390,37 @@ fn mixtures_and_deltas_round_trip() {
     assert!(refused * 1000 <= total, "refused {refused} of {total}");
 }
 
-/// Probability that the coating lobe of a plastic produces a direction at all for `wo` (a
-/// reflected visible normal can point below the horizon): ∫ p_spec dω by quadrature.
+/// |S_spec|: the fraction of the specular lobe's uniforms (u[1], u[2]) for which `sample` succeeds
+/// (the reflection stays above the horizon), measured on the sampler itself over a 1024² midpoint
+/// grid of the unit square. The success set is bounded by a smooth curve, so the grid's error is
+/// about its perimeter / 1024 ≈ 1e-3 of the expected counts (≈ 2 of the ~2,500 per χ² bin; the
+/// test's noise is ~50). Measured: 0.912 for α = 0.3 at 45°, 0.839 for α = 0.5 at 60°.
 fn specular_success_probability(m: &Material, wo: Vec3) -> f64 {
-    let cap = CapParam::new(fresnel::reflect_z(wo));
-    crate::sampling::chi2::integrate_2d(
-        |p| {
-            let (w, jac) = cap.from_param(p);
-            f64::from(m.lobe_pdf(plastic::SPECULAR, wo, w)) * jac
-        },
-        [0.0, 1.0],
-        [0.0, 2.0 * std::f64::consts::PI],
-        16,
-        16,
-    )
+    let Material::RoughPlastic { alpha, .. } = *m else { return 1.0 };
+    let ggx = Ggx::new(alpha);
+    const N: usize = 1024;
+    let mut hits = 0usize;
+    for i in 0..N {
+        for j in 0..N {
+            let u = [(i as f32 + 0.5) / N as f32, (j as f32 + 0.5) / N as f32];
+            if ggx.sample_reflection(wo, u).is_some_and(|(wi, _)| wi.z > 0.0) {
+                hits += 1;
+            }
+        }
+    }
+    hits as f64 / (N * N) as f64
 }
 
 /// The inverse's u are distributed as the paper says: if u is uniform, wi = sample(u), and the
 /// inverse picks lobe t by T(t) (Eq. 44), u[0] uniformly inside its interval (Eq. 40) and inverts
 /// the direction map, then the inverted u are again uniform over the set S of u for which `sample`
 /// succeeds (the stationary-distribution argument of RJMLT Sec. 5). For the plastic, S misses the
-/// specular uniforms whose reflection falls below the horizon, so the density of u[0] is
-/// P_succ(lobe(u[0])) / |S| and that of (u[1], u[2]) is (α_s 1[spec succeeds] + α_d) / |S|. For
+/// specular uniforms whose reflection falls below the horizon, so relative to all samples the
+/// density of u[0] is P_succ(lobe(u[0])) and that of (u[1], u[2]) is α_s 1[spec succeeds] + α_d,
+/// the rest being the sampler's failures. For
 /// the dielectric every u succeeds and u[0] is uniform. Chi-square tests at this module's Šidák
 /// level.
 #[test]
-#[ignore = "fails: inverted u[0] of the rough plastic (alpha 0.3, 45 deg) over-fills the bin at the lobe boundary (3090 vs 2300 expected, not a quadrature artefact); open in issue 3"]
 fn inverted_uniforms_are_distributed_as_sampled() {
     // The expected density of u[0] is a step at the lobe boundary p_s, which falls inside a bin:
     // a deep minimum subdivision lets the adaptive quadrature locate the step (with the default
@@ -443,27 +447,47 @@ fn inverted_uniforms_are_distributed_as_sampled() {
         let [ps, pd] = m.lobe_probabilities(wo);
         let succ = specular_success_probability(&m, wo);
         assert!(succ > 0.5 && succ <= 1.0 + 1e-6, "{succ}");
-        let norm = ps as f64 * succ + pd as f64;
+        // Densities relative to all samples: the sampler's failures (a specular reflection below
+        // the horizon, probability p_s (1 − |S_spec|)) fall into the χ² harness's "failed" cell,
+        // whose expectation is 1 − ∫ pdf. (Dividing by |S| here, as before, made the failures
+        // unexpected; the harness pooled them into bin 2 and the inverse looked biased.)
         let out = chi2_1d(
             &cfg,
             [0.0, 1.0],
             41 + i as u64,
             |rng| invert_once(&m, wo, rng).map(|u| f64::from(u[0])),
-            |x| if x < ps as f64 { succ / norm } else { 1.0 / norm },
+            |x| if x < ps as f64 { succ } else { 1.0 },
         );
         assert!(out.passed, "{m:?} u[0]: {}", out.message);
         if i == 1 {
+            // The density is p_d + p_s·1[specular sampling succeeds at (u1, u2)]: an indicator of a
+            // set only the sampler decides, so each bin's mass is counted on a 64×64 midpoint grid
+            // inside it rather than by quadrature (which must bisect along the whole boundary).
+            // The grid's error is confined to cells the boundary crosses: about 1/16 · 1024 of a
+            // bin's 4096 cells, each off by at most half its mass, on average far less; ≤ 1% of
+            // a bin's ~390 expected counts against a noise of ~20.
             let ggx = Ggx::new(0.5);
-            let cfg2 = Chi2Config { res: [16, 16], max_depth: 8, ..cfg.clone() };
-            let out = chi2_test(
+            let cfg2 = Chi2Config { res: [16, 16], ..cfg.clone() };
+            const SUB: usize = 64;
+            let out = chi2_test_bin_masses(
                 &cfg2,
                 [0.0, 1.0],
                 [0.0, 1.0],
                 44,
                 |rng| invert_once(&m, wo, rng).map(|u| [f64::from(u[1]), f64::from(u[2])]),
-                |p| {
-                    let spec_ok = ggx.sample_reflection(wo, [p[0] as f32, p[1] as f32]).is_some();
-                    (ps as f64 * if spec_ok { 1.0 } else { 0.0 } + pd as f64) / norm
+                |a, b| {
+                    let mut ok = 0usize;
+                    for i in 0..SUB {
+                        for j in 0..SUB {
+                            let u1 = a[0] + (a[1] - a[0]) * (i as f64 + 0.5) / SUB as f64;
+                            let u2 = b[0] + (b[1] - b[0]) * (j as f64 + 0.5) / SUB as f64;
+                            if ggx.sample_reflection(wo, [u1 as f32, u2 as f32]).is_some_and(|(wi, _)| wi.z > 0.0) {
+                                ok += 1;
+                            }
+                        }
+                    }
+                    let area = (a[1] - a[0]) * (b[1] - b[0]);
+                    area * (ps as f64 * ok as f64 / (SUB * SUB) as f64 + pd as f64)
                 },
             );
             assert!(out.passed, "{m:?} (u[1], u[2]): {}", out.message);
@@ -520,19 +544,26 @@ fn direction_maps_have_jacobian_one_over_pdf() {
     assert!(checked > 3000, "too few regular points checked: {checked}");
 }
 
-/// ∫ f cos dωi by quadrature in the log-cap parameterisation around the mirror direction.
+/// ∫ f cos dωi by quadrature in the log-cap parameterisation around the mirror direction: 12×12
+/// cells, each to an absolute tolerance of 1e-7 with at most 5 bisections per dimension. f is
+/// evaluated in f32, so a tighter tolerance is never met and only bisects every cell to the limit.
+/// The limit binds mostly where α = 1e-3 meets the horizon (θo ≥ 80°: the lobe is cut off within
+/// cos θi ≲ α). Measured against 8 bisections (up to 50× slower), every albedo of
+/// `energy_is_conserved` agrees within 1e-5: far inside the 1e-4 and 2e-4 the tests allow for
+/// quadrature.
 fn albedo_quadrature(m: &Material, wo: Vec3, mode: TransportMode) -> Rgb {
     let cap = CapParam::new(fresnel::reflect_z(wo));
     let channel = |c: usize| {
-        crate::sampling::chi2::integrate_2d(
+        crate::sampling::chi2::integrate_2d_to(
             |p| {
-                let (w, jac) = cap.from_param(p);
+                let (w, jac) = cap.direction_at(p);
                 f64::from(m.eval(wo, w, mode)[c] * w.z.abs()) * jac
             },
             [0.0, 1.0],
             [0.0, 2.0 * std::f64::consts::PI],
-            12,
-            12,
+            [12, 12],
+            1e-7,
+            5,
         )
     };
     Rgb::new(channel(0) as f32, channel(1) as f32, channel(2) as f32)
@@ -542,7 +573,6 @@ fn albedo_quadrature(m: &Material, wo: Vec3, mode: TransportMode) -> Rgb {
 /// near-perfect conductor), = ρ for diffuse; delta lobes' weights sum to ≤ 1 (importance mode,
 /// where refraction carries no 1/η² radiance scaling). Quadrature error is below 1e-4 here.
 #[test]
-#[ignore = "not yet seen to complete within the test-time budget on the 2-core machine; run with --ignored (open in issue 3)"]
 fn energy_is_conserved() {
     for &theta in &ANGLES {
         let wo = dir(theta, 0.7);
@@ -574,7 +604,6 @@ fn energy_is_conserved() {
 /// samples the estimator's standard error is s/√n (s the sample standard deviation); we allow
 /// 5 standard errors plus 2e-4 for the quadrature.
 #[test]
-#[ignore = "not yet seen to complete within the test-time budget on the 2-core machine; run with --ignored (open in issue 3)"]
 fn sampling_estimator_matches_quadrature() {
     let n = 20_000;
     let mut rng = Rng::new(41, 0);
