@@ -27,7 +27,7 @@ pub struct ReferenceArgs {
     pub out: PathBuf,
     /// Integrator (default pt: the simplest unbiased estimator is the safest reference).
     #[arg(long, value_name = "NAME", default_value = "pt",
-          help = format!("Integrator: {} [default: pt]", INTEGRATOR_NAMES.join(", ")))]
+          help = format!("Integrator: {}", INTEGRATOR_NAMES.join(", ")))]
     pub integrator: String,
     /// Samples per pixel.
     #[arg(long, value_name = "N", conflicts_with = "time", required_unless_present = "time")]
