@@ -569,6 +569,71 @@ fn albedo_quadrature(m: &Material, wo: Vec3, mode: TransportMode) -> Rgb {
     Rgb::new(channel(0) as f32, channel(1) as f32, channel(2) as f32)
 }
 
+/// Fraction of a 1024² midpoint grid of (u1, u2) for which the GGX reflection of `wo` stays above
+/// the horizon: the success probability of `Ggx::sample_reflection`, counted on the sampler itself.
+/// The set's boundary is a smooth curve, so the count is off by about (boundary cells) × (a fraction
+/// of a cell) ≲ 1e-3; midpoint errors on either side of the curve mostly cancel.
+fn reflection_success_probability(alpha: f32, wo: Vec3) -> f64 {
+    let ggx = Ggx::new(alpha);
+    const N: usize = 1024;
+    let mut hits = 0usize;
+    for i in 0..N {
+        for j in 0..N {
+            let u = [(i as f32 + 0.5) / N as f32, (j as f32 + 0.5) / N as f32];
+            hits += usize::from(ggx.sample_reflection(wo, u).is_some());
+        }
+    }
+    hits as f64 / (N * N) as f64
+}
+
+/// Each pdf integrates, by quadrature, to the probability that `sample` returns a direction: 1 for
+/// the diffuse lobe, and for a GGX lobe the share of uniforms whose reflection stays above the
+/// horizon (counted on the sampler), weighted by the lobe probabilities for the plastic. This is
+/// the "each pdf integrates to 1" for lobes that can fail: what the pdf leaves out of the
+/// sphere must be exactly what the sampler fails on. Quadrature as `albedo_quadrature` (error
+/// ≲ 1e-5), grid count ≲ 1e-3, so we allow 2e-3.
+#[test]
+fn pdfs_integrate_to_the_sampling_success_rate() {
+    let mut worst = 0.0f64;
+    let mut materials = vec![(0.0, Material::Diffuse { reflectance: Rgb::new(0.9, 0.5, 0.1) })];
+    for &alpha in &ALPHAS {
+        materials.push((alpha, conductor(alpha)));
+        materials.push((alpha, plastic(alpha)));
+    }
+    for (alpha, m) in &materials {
+        for &theta in &ANGLES {
+            let wo = dir(theta, 0.7);
+            let cap = CapParam::new(fresnel::reflect_z(wo));
+            let integral = crate::sampling::chi2::integrate_2d_to(
+                |p| {
+                    let (w, jac) = cap.direction_at(p);
+                    f64::from(m.pdf(wo, w, MODE)) * jac
+                },
+                [0.0, 1.0],
+                [0.0, 2.0 * std::f64::consts::PI],
+                [12, 12],
+                1e-7,
+                5,
+            );
+            let expected = match m {
+                Material::Diffuse { .. } => 1.0,
+                Material::RoughConductor { .. } => reflection_success_probability(*alpha, wo),
+                Material::RoughPlastic { .. } => {
+                    let [ps, pd] = m.lobe_probabilities(wo);
+                    f64::from(ps) * reflection_success_probability(*alpha, wo) + f64::from(pd)
+                }
+                _ => unreachable!("smooth materials only"),
+            };
+            worst = worst.max((integral - expected).abs());
+            assert!(
+                (integral - expected).abs() < 2e-3,
+                "{m:?} at {theta}°: ∫pdf = {integral}, sampler succeeds with probability {expected}"
+            );
+        }
+    }
+    eprintln!("worst |∫pdf − P(success)| = {worst:e}");
+}
+
 /// Energy: ∫ f cos dωi ≤ 1 for every material with its most reflective parameters (white base,
 /// near-perfect conductor), = ρ for diffuse; delta lobes' weights sum to ≤ 1 (importance mode,
 /// where refraction carries no 1/η² radiance scaling). Quadrature error is below 1e-4 here.
