@@ -105,9 +105,9 @@ pub fn create(name: &str, params: &toml::Table) -> Result<Box<dyn Integrator>, R
         "pt" => Ok(Box::new(pt::PathTracer::from_params(params)?)),
         "bdpt" => Ok(Box::new(bdpt::Bdpt::from_params(params)?)),
         "light" => Ok(Box::new(light_tracing::LightTracer::from_params(params)?)),
-        "pssmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::mlt::MltVariant::Pssmlt, params)?)),
-        "mmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::mlt::MltVariant::Mmlt, params)?)),
-        "rjmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::mlt::MltVariant::Rjmlt, params)?)),
+        "pssmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Pssmlt, params)?)),
+        "mmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Mmlt, params)?)),
+        "rjmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Rjmlt, params)?)),
         other => Err(RenderError::UnknownIntegrator(other.to_string())),
     }
 }

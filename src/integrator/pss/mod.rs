@@ -4,6 +4,7 @@ pub mod inverse;
 pub mod jump;
 pub mod mlt;
 pub mod sampler;
+pub mod settings;
 pub mod validation_1d;
 
 pub use sampler::{MutationSettings, PssSampler};

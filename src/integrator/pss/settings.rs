@@ -1,0 +1,127 @@
+//! Settings of the Markov chain integrators (`pssmlt`, `mmlt`, `rjmlt`): which method, the
+//! `[integrator]` table's keys with the papers' defaults, and their validation.
+
+use serde::{Deserialize, Serialize};
+
+use crate::integrator::bdpt::MisHeuristic;
+use crate::integrator::{settings_from_table, RenderError};
+
+/// Which of the three methods.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MltVariant {
+    Pssmlt,
+    Mmlt,
+    Rjmlt,
+}
+
+impl MltVariant {
+    pub fn name(self) -> &'static str {
+        match self {
+            MltVariant::Pssmlt => "pssmlt",
+            MltVariant::Mmlt => "mmlt",
+            MltVariant::Rjmlt => "rjmlt",
+        }
+    }
+}
+
+/// RJMLT's default probability of a large step (Bitterli et al. 2017, Sec. 7: 10% large steps,
+/// 85% small steps, 5% technique jumps).
+pub const RJMLT_LARGE_STEP_PROBABILITY: f64 = 0.1;
+/// RJMLT's default probability of a technique jump.
+pub const RJMLT_JUMP_PROBABILITY: f64 = 0.05;
+
+/// Settings of `integrator = "pssmlt"` and `"mmlt"` (defaults: the MMLT paper, Sec. 5).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MltSettings {
+    /// Maximum number of scattering events of a path (the paper's L = 8).
+    pub max_depth: u32,
+    /// Uniform samples per path depth used to estimate b_d (the paper's N; 100,000).
+    pub bootstrap: u64,
+    /// Number of independent chains (each holds one sub-chain per depth for MMLT).
+    pub chains: u64,
+    /// Probability of a large step (Kelemen's p_large; 0.3; RJMLT 0.1).
+    pub large_step_probability: f64,
+    /// RJMLT only: probability of a technique jump (0.05; the rest are small steps).
+    pub jump_probability: f64,
+    /// Small-step width in primary sample space (0.01).
+    pub sigma: f64,
+    /// Refine b_d with every large step during the render (large steps are uniform samples, so
+    /// they are extra bootstrap samples for free). On by default: the paper notes it is more
+    /// robust than the one-off bootstrap, and it costs nothing.
+    pub progressive_b: bool,
+    /// MIS heuristic of the technique weights: "balance" (default) or "power".
+    pub mis: MisHeuristic,
+    /// Russian roulette on subpaths after this many bounces (disabled by default: MCMC prefers a
+    /// deterministic path length per state).
+    pub rr_depth: u32,
+    /// MMLT only: write, per technique (s, t), an image of how many iterations that technique was
+    /// the chain's state at each pixel (the paper's Fig. 5) as extra layers.
+    pub technique_count_layers: bool,
+}
+
+impl MltSettings {
+    /// The settings of `variant` from its `[integrator]` table, with RJMLT's own defaults for the
+    /// step probabilities, validated: every refusal names the setting and the valid range.
+    pub fn from_params(variant: MltVariant, params: &toml::Table) -> Result<MltSettings, RenderError> {
+        let name = variant.name();
+        let mut settings: MltSettings = settings_from_table(name, params)?;
+        let bad = |m: &str| Err(RenderError::Settings(format!("{name}: {m}")));
+        if variant == MltVariant::Rjmlt {
+            if !params.contains_key("large_step_probability") {
+                settings.large_step_probability = RJMLT_LARGE_STEP_PROBABILITY;
+            }
+            if !params.contains_key("jump_probability") {
+                settings.jump_probability = RJMLT_JUMP_PROBABILITY;
+            }
+            if settings.rr_depth != u32::MAX {
+                // The roulette number lies in an interval that depends on the path's throughput;
+                // the inverse walk treats it as unused.
+                return bad("rr_depth is not supported: the technique jumps invert paths without Russian roulette");
+            }
+        } else if params.contains_key("jump_probability") {
+            return bad("jump_probability applies only to rjmlt (technique jumps need inverse sampling)");
+        }
+        if !(0.0..=1.0).contains(&settings.jump_probability)
+            || settings.large_step_probability + settings.jump_probability > 1.0
+        {
+            return bad("jump_probability must be in [0, 1] and large_step_probability + jump_probability at most 1");
+        }
+        if settings.max_depth == 0 {
+            return bad("max_depth must be at least 1");
+        }
+        if settings.bootstrap == 0 {
+            return bad("bootstrap must be at least 1");
+        }
+        if settings.chains == 0 {
+            return bad("chains must be at least 1");
+        }
+        if !(0.0..=1.0).contains(&settings.large_step_probability) {
+            return bad("large_step_probability must be in [0, 1]");
+        }
+        if !(settings.sigma > 0.0 && settings.sigma.is_finite()) {
+            return bad("sigma must be a positive number");
+        }
+        if settings.mis == MisHeuristic::None {
+            return bad("mis must be \"balance\" or \"power\"");
+        }
+        Ok(settings)
+    }
+}
+
+impl Default for MltSettings {
+    fn default() -> Self {
+        MltSettings {
+            max_depth: 8,
+            bootstrap: 100_000,
+            chains: 1000,
+            large_step_probability: 0.3,
+            jump_probability: 0.0,
+            sigma: 0.01,
+            progressive_b: true,
+            mis: MisHeuristic::Balance,
+            rr_depth: u32::MAX,
+            technique_count_layers: false,
+        }
+    }
+}
