@@ -158,28 +158,12 @@ impl Driver {
 
     /// Runs `kernel` on every (pass, unit) item. The kernel gets the item, its unit's state and its
     /// slot, and returns the progress units it completed (e.g. pixel samples), which are reported
-    /// to `progress` after each item.
+    /// to `progress` after each item. When `progress` asks for previews
+    /// (`Progress::preview_interval`) and a `snapshot` is given, between passes at most that often
+    /// `snapshot(slots, passes done)` builds the current normalised image from the slots, which
+    /// `progress.preview` receives. Previews only read the films, so the image and its determinism
+    /// do not depend on them.
     pub fn run<U, S, K>(
-        &self,
-        units: Vec<U>,
-        passes: Passes,
-        progress: &dyn Progress,
-        init_slot: impl Fn(usize) -> S,
-        kernel: K,
-    ) -> RunOutput<U, S>
-    where
-        U: Send,
-        S: Send + Sync,
-        K: Fn(&WorkItem, &mut U, &mut Slot<S>) -> u64 + Sync,
-    {
-        self.run_with_preview(units, passes, progress, init_slot, kernel, None)
-    }
-
-    /// `run`, and when `progress` asks for previews (`Progress::preview_interval`), between passes
-    /// at most that often: `snapshot(slots, passes done)` builds the current normalised image from
-    /// the slots, which `progress.preview` receives. Previews only read the films, so the image
-    /// and its determinism do not depend on them.
-    pub fn run_with_preview<U, S, K>(
         &self,
         units: Vec<U>,
         passes: Passes,
@@ -293,7 +277,7 @@ pub fn scaled_film_image<S>(slots: &[&Slot<S>], scale: f64) -> Image {
     film.to_image(scale)
 }
 
-/// Builds a preview image from the slots and the number of passes done (see `run_with_preview`).
+/// Builds a preview image from the slots and the number of passes done (see `Driver::run`).
 pub type Snapshot<'a, S> = dyn Fn(&[&Slot<S>], u64) -> Image + 'a;
 
 /// A rectangle of pixels `[x0, x1) × [y0, y1)`.
@@ -367,6 +351,12 @@ impl ImagePlan {
             None => passes * self.spp_per_pass,
         }
     }
+
+    /// The preview of an integrator whose image is its slots' summed film over the samples per
+    /// pixel so far (the path tracer, BDPT, light tracing): a `Snapshot` for `run`.
+    pub fn preview_image<S>(&self, slots: &[&Slot<S>], passes: u64) -> Image {
+        scaled_film_image(slots, 1.0 / self.spp_after(passes).max(1) as f64)
+    }
 }
 
 #[cfg(test)]
@@ -398,6 +388,7 @@ mod tests {
                 slot.counters.samples += 50;
                 50
             },
+            None,
         );
         assert!(out.units.iter().all(|&v| v == 3), "every unit runs once per pass");
         (out.film, out.counters, out.passes)
@@ -432,6 +423,7 @@ mod tests {
                 std::thread::sleep(Duration::from_millis(2));
                 1
             },
+            None,
         );
         assert!(out.passes >= 1);
         assert!(t.elapsed().as_secs_f64() < 1.0);
@@ -440,7 +432,7 @@ mod tests {
     /// A kernel of 4 units × 5 ms on 2 threads: a pass takes about 10 ms.
     fn sleepy_run(passes: Passes, progress: &dyn Progress) -> RunOutput<(), ()> {
         let driver = Driver::new(&job(2, 1), 4, 4).expect("pool");
-        driver.run_with_preview(
+        driver.run(
             vec![(); 4],
             passes,
             progress,

@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use super::bdpt::connect::connect_to_camera;
 use super::bdpt::{generate_light_subpath, BdptContext, MisHeuristic, Vertex};
-use super::driver::{scaled_film_image, Driver, ImagePlan, Slot};
+use super::driver::{Driver, ImagePlan, Slot};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
@@ -76,10 +76,8 @@ impl Integrator for LightTracer {
         let driver = Driver::new(job, width, height)?;
         let ctx = BdptContext::new(scene, self.settings.rr_depth as usize, MisHeuristic::None);
         let max_vertices = self.settings.max_depth as usize + 1;
-        let preview = |slots: &[&Slot<Vec<Vertex>>], passes: u64| {
-            scaled_film_image(slots, 1.0 / plan.spp_after(passes).max(1) as f64)
-        };
-        let out = driver.run_with_preview(
+        let preview = |slots: &[&Slot<Vec<Vertex>>], passes: u64| plan.preview_image(slots, passes);
+        let out = driver.run(
             plan.tiles.clone(),
             plan.passes.counted_from(started),
             progress,

@@ -15,7 +15,7 @@
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
-use super::driver::{scaled_film_image, Driver, ImagePlan, Slot};
+use super::driver::{Driver, ImagePlan, Slot};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::geometry::Ray;
 use crate::material::TransportMode;
@@ -269,9 +269,8 @@ impl Integrator for PathTracer {
             progress.set_total(spp * width as u64 * height as u64);
         }
         let driver = Driver::new(job, width, height)?;
-        let preview =
-            |slots: &[&Slot<()>], passes: u64| scaled_film_image(slots, 1.0 / plan.spp_after(passes).max(1) as f64);
-        let out = driver.run_with_preview(
+        let preview = |slots: &[&Slot<()>], passes: u64| plan.preview_image(slots, passes);
+        let out = driver.run(
             plan.tiles.clone(),
             plan.passes.counted_from(started),
             progress,

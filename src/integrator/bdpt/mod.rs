@@ -33,7 +33,7 @@ pub use subpath::{
 };
 pub use vertex::{Vertex, VertexKind};
 
-use super::driver::{scaled_film_image, Driver, ImagePlan, Slot};
+use super::driver::{Driver, ImagePlan, Slot};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::film::{Accumulator, Image};
 use crate::sampling::Rng;
@@ -265,10 +265,8 @@ impl Integrator for Bdpt {
         let driver = Driver::new(job, width, height)?;
         let ctx = self.context(scene);
         let technique_depth = (self.settings.technique_max_depth.min(self.settings.max_depth)) as usize;
-        let preview = |slots: &[&Slot<BdptSlot>], passes: u64| {
-            scaled_film_image(slots, 1.0 / plan.spp_after(passes).max(1) as f64)
-        };
-        let out = driver.run_with_preview(
+        let preview = |slots: &[&Slot<BdptSlot>], passes: u64| plan.preview_image(slots, passes);
+        let out = driver.run(
             plan.tiles.clone(),
             plan.passes.counted_from(started),
             progress,

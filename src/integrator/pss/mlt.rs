@@ -643,6 +643,7 @@ impl Integrator for Mlt {
                     }
                     0
                 },
+                None,
             )
         };
         let first = run_batches(0..1);
@@ -727,7 +728,7 @@ impl Integrator for Mlt {
             let states: Vec<&SlotState> = slots.iter().map(|slot| &slot.state).collect();
             self.normalised_image(&states, &bootstrap, width, height).0
         };
-        let out = driver.run_with_preview(
+        let out = driver.run(
             units,
             passes,
             progress,
