@@ -7,7 +7,8 @@
 //! over the two densities, both expressed per unit solid angle at the shading point, the light's
 //! including its selection probability. After a specular (delta) bounce no light sample is possible,
 //! so emission found by the continuation ray counts fully. Environment lights are handled both ways
-//! like area lights. Russian roulette starts after `rr_depth` bounces.
+//! like area lights. Russian roulette starts after `rr_depth` bounces and follows the throughput with
+//! refraction's 1/η² undone (`roulette_survival`).
 //!
 //! All randomness comes from the work item's stream in a fixed order that depends only on the hits,
 //! and hit points come from barycentrics, so Embree and the in-house BVH give the same image.
@@ -131,6 +132,9 @@ impl PathTracer {
     pub fn li(&self, scene: &Scene, mut ray: Ray, rng: &mut Rng, counters: &mut Counters) -> Rgb {
         let mut l = Rgb::ZERO;
         let mut beta = Rgb::ONE;
+        // Product of η² over the refractions so far: beta · eta_scale is the throughput without the
+        // 1/η² radiance compression, what Russian roulette looks at (pbrt-v4 `etaScale`).
+        let mut eta_scale = 1.0f32;
         // State of the previous vertex, for weighting emission found by the BSDF-sampled ray.
         let mut specular_bounce = true;
         let mut prev_pdf = 0.0f32;
@@ -222,6 +226,7 @@ impl PathTracer {
                 break;
             }
             beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+            eta_scale *= bs.eta * bs.eta;
             if !is_finite(beta) {
                 counters.nonfinite_dropped += 1;
                 break;
@@ -233,13 +238,10 @@ impl PathTracer {
 
             let u_rr = rng.uniform();
             if depth >= self.settings.rr_depth {
-                // Survival probability follows the throughput (pbrt-v4 Sec. 13.1.5, without its
-                // η scaling), with a floor so long paths are not cut off too eagerly.
-                let q = (1.0 - beta.max_element()).max(0.05);
-                if u_rr < q {
-                    break;
+                match russian_roulette(beta, eta_scale, u_rr) {
+                    Some(survivor) => beta = survivor,
+                    None => break,
                 }
-                beta /= 1.0 - q;
             }
         }
         l
@@ -249,6 +251,37 @@ impl PathTracer {
     fn light_pmf(&self, scene: &Scene, index: u32) -> f32 {
         scene.light_sampler.distribution.pdf_discrete(index as usize)
     }
+}
+
+/// Probability that Russian roulette lets a path with throughput `beta` continue, `eta_scale` being
+/// the product of η² over its refractions (pbrt-v4 `PathIntegrator::Li`, Sec. 13.1.5):
+/// q = max component of beta · eta_scale when that is below 1, else 1 (no roll).
+///
+/// Undoing the 1/η² that refraction applies in radiance transport (Veach 1997 Sec. 5.2) keeps a
+/// path inside glass from being killed for a compression that the exit undoes (×η² again): without
+/// it a path inside η = 1.5 survives each roll with q ≈ 1/2.25 ≈ 0.44. There is no floor: a survivor
+/// is reweighted by 1/q, which brings beta · eta_scale's largest component to exactly 1, so no
+/// survivor ever carries more than a fresh unit-throughput path and a floor would only spend rays on
+/// paths that carry less than it. `max_depth` bounds the paths that never roll.
+pub fn roulette_survival(beta: Rgb, eta_scale: f32) -> f32 {
+    let m = (beta * eta_scale).max_element();
+    // `!(m < 1)` also sends a NaN to "no roll"; `li` drops non-finite throughputs before rolling.
+    if !(m < 1.0) {
+        1.0
+    } else {
+        m.max(0.0)
+    }
+}
+
+/// One roll of Russian roulette with the uniform `u`: the reweighted throughput beta / q if the
+/// path survives (u < q, probability q = `roulette_survival`), `None` if it ends. The expected
+/// reweighted throughput is q · beta/q = beta, so the estimator stays unbiased.
+pub fn russian_roulette(beta: Rgb, eta_scale: f32, u: f32) -> Option<Rgb> {
+    let q = roulette_survival(beta, eta_scale);
+    if q >= 1.0 {
+        return Some(beta);
+    }
+    (u < q).then(|| beta / q)
 }
 
 impl Integrator for PathTracer {
@@ -313,6 +346,7 @@ impl Integrator for PathTracer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::Material;
 
     #[test]
     fn settings_defaults_and_unknown_keys() {
@@ -326,6 +360,80 @@ mod tests {
         assert!(err.contains("max_dept"), "{err}");
         let zero: toml::Table = toml::from_str("max_depth = 0").expect("toml");
         assert!(PathTracer::from_params(&zero).is_err());
+    }
+
+    /// A path whose throughput (η² undone) is ≥ 1 in some channel is never rolled: it survives
+    /// whatever the uniform. The formula before issue 12, survival = min(max βᵢ, 0.95), failed
+    /// this with q = 0.95 for β = 1.
+    #[test]
+    fn roulette_never_rolls_a_throughput_of_one_or_more() {
+        for beta in [Rgb::ONE, Rgb::new(1.0, 0.2, 0.1), Rgb::new(0.0, 3.0, 0.0), Rgb::splat(40.0)] {
+            assert_eq!(roulette_survival(beta, 1.0), 1.0, "{beta:?}");
+            assert_eq!(russian_roulette(beta, 1.0, 0.999_999), Some(beta), "{beta:?}");
+        }
+        // 0.5 inside glass (η² = 2.25 accumulated) is 1.125 without the compression: no roll.
+        assert_eq!(roulette_survival(Rgb::splat(0.5), 2.25), 1.0);
+    }
+
+    /// Refracting into η = 1.5 divides the radiance throughput by 2.25; the η² the sample record
+    /// reports undoes it, so a camera path that has only entered glass survives with q = 1 (the
+    /// formula before issue 12 gave q = 0.444), a diffuse bounce of albedo 0.5 inside gives q = 0.5
+    /// (before: 0.222), and leaving the glass restores both factors to 1.
+    #[test]
+    fn roulette_undoes_the_radiance_compression_of_refraction() {
+        let glass = Material::Dielectric { ior: 1.5 };
+        let mut beta = Rgb::ONE;
+        let mut eta_scale = 1.0f32;
+        let mut bounce = |wo: Vec3, beta: &mut Rgb, eta_scale: &mut f32| {
+            // u[0] = 0.99 is past F ≈ 0.04 at normal incidence: the refraction lobe.
+            let bs = glass.sample(wo, [0.99, 0.5, 0.5], TransportMode::Radiance).expect("refracts");
+            assert_eq!(bs.lobe as usize, crate::material::DIELECTRIC_REFRACT);
+            *beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+            *eta_scale *= bs.eta * bs.eta;
+        };
+        bounce(Vec3::Z, &mut beta, &mut eta_scale);
+        assert!((beta.max_element() - 1.0 / 2.25).abs() < 1e-5, "entering compresses: {beta:?}");
+        let q = roulette_survival(beta, eta_scale);
+        assert!((q - 1.0).abs() < 1e-5, "inside glass q = {q}");
+        let q_half = roulette_survival(beta * 0.5, eta_scale);
+        assert!((q_half - 0.5).abs() < 1e-5, "albedo 0.5 inside glass: q = {q_half}");
+        bounce(-Vec3::Z, &mut beta, &mut eta_scale);
+        assert!((beta - Rgb::ONE).abs().max_element() < 1e-5 && (eta_scale - 1.0).abs() < 1e-5);
+        assert!((roulette_survival(beta, eta_scale) - 1.0).abs() < 1e-5);
+    }
+
+    /// E[reweighted throughput] = β for every β and η² state: over the midpoint grid u_k =
+    /// (k + ½)/N the number of survivors differs from N·q by at most 1, so each channel's mean of
+    /// survivor/β is within 1/(N q) of 1 (q ≥ 8.9e-4 here: ≤ 1.2e-2 at N = 10⁵), plus f32
+    /// rounding of β/q (≤ 1e-6). A reweighting by 1/max βᵢ (forgetting η²) fails this, measured
+    /// 0.444 and 2.25 for η² = 2.25 and 1/2.25.
+    #[test]
+    fn roulette_keeps_the_expected_weight() {
+        const N: usize = 100_000;
+        let betas = [Rgb::new(0.4, 0.3, 0.1), Rgb::new(0.2, 0.05, 0.2), Rgb::new(1e-3, 2e-3, 5e-4)];
+        for beta in betas {
+            for eta_scale in [1.0f32, 2.25, 1.0 / 2.25] {
+                let q = roulette_survival(beta, eta_scale);
+                assert!(q > 0.0 && q < 1.0, "{beta:?} {eta_scale}: q = {q}");
+                let mut sum = [0.0f64; 3];
+                for k in 0..N {
+                    let u = ((k as f64 + 0.5) / N as f64) as f32;
+                    if let Some(b) = russian_roulette(beta, eta_scale, u) {
+                        for (c, s) in sum.iter_mut().enumerate() {
+                            *s += b[c] as f64;
+                        }
+                    }
+                }
+                let bound = 1.0 / (N as f64 * q as f64) + 1e-6;
+                for (c, s) in sum.iter().enumerate() {
+                    let ratio = s / N as f64 / beta[c] as f64;
+                    assert!(
+                        (ratio - 1.0).abs() <= bound,
+                        "{beta:?} η² {eta_scale} channel {c}: {ratio} (bound {bound})"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

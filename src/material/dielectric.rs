@@ -44,6 +44,16 @@ pub fn weight(ior: f32, t: usize, wo: Vec3, mode: TransportMode) -> Rgb {
     Rgb::splat((1.0 - fr.reflectance) * scale)
 }
 
+/// η_t/η_i crossed by lobe `t` from the side of `wo`: the `eta_ti` whose square `weight` divides
+/// by in radiance transport for refraction; 1 for reflection.
+pub fn eta(ior: f32, t: usize, wo: Vec3) -> f32 {
+    if t == REFLECT {
+        1.0
+    } else {
+        fresnel_dielectric(wo.z, ior).eta_ti
+    }
+}
+
 /// Whether `wi` is the direction of lobe `t` for `wo` (within `DELTA_DIRECTION_TOLERANCE`).
 pub fn matches(ior: f32, t: usize, wo: Vec3, wi: Vec3) -> bool {
     match sample(ior, t, wo) {

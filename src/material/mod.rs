@@ -93,6 +93,11 @@ pub struct BsdfSample {
     pub delta: bool,
     /// Index of the lobe that was chosen (material-specific; see `Material::lobe_count`).
     pub lobe: u8,
+    /// Relative index of refraction η_t/η_i crossed by a refraction lobe (the side `wi` enters
+    /// over the side `wo` is on); 1 for reflection. In radiance transport `f` carries its 1/η²
+    /// (Veach 1997 Sec. 5.2), which a throughput-driven Russian roulette must undo (pbrt-v4's
+    /// `BSDFSample::eta` and `etaScale`, Sec. 13.1.5).
+    pub eta: f32,
 }
 
 /// What `Material::invert` found: the primary samples that `sample` maps to `wi`, and the factors
@@ -161,13 +166,14 @@ impl Material {
         }
         if self.lobe_is_delta(t) {
             let f = self.delta_weight(t, wo, mode) / wi.z.abs();
-            return Some(BsdfSample { wi, f, pdf: probs[t], delta: true, lobe: t as u8 });
+            let eta = self.lobe_eta(t, wo);
+            return Some(BsdfSample { wi, f, pdf: probs[t], delta: true, lobe: t as u8, eta });
         }
         let pdf = self.pdf(wo, wi, mode);
         if !(pdf > 0.0) || !pdf.is_finite() {
             return None;
         }
-        Some(BsdfSample { wi, f: self.eval(wo, wi, mode), pdf, delta: false, lobe: t as u8 })
+        Some(BsdfSample { wi, f: self.eval(wo, wi, mode), pdf, delta: false, lobe: t as u8, eta: 1.0 })
     }
     /// Whether every lobe is a delta (mirror, smooth dielectric): no light-source connection can
     /// be made at such a vertex.
@@ -270,6 +276,14 @@ impl Material {
             Material::Mirror { reflectance } => specular::weight(reflectance),
             Material::Dielectric { ior } => dielectric::weight(ior, t, wo, mode),
             _ => Rgb::ZERO,
+        }
+    }
+
+    /// η_t/η_i that lobe `t` crosses from the side of `wo` (1 for every reflection lobe).
+    fn lobe_eta(&self, t: usize, wo: Vec3) -> f32 {
+        match *self {
+            Material::Dielectric { ior } => dielectric::eta(ior, t, wo),
+            _ => 1.0,
         }
     }
 

@@ -237,10 +237,13 @@ fn delta_lobes_have_their_discrete_probabilities() {
                 reflected += 1;
                 assert!((s.wi - fresnel::reflect_z(wo)).length() < 1e-6);
                 assert!((throughput - Rgb::ONE).abs().max_element() < 1e-5, "{throughput:?}");
+                assert_eq!(s.eta, 1.0, "reflection crosses no interface");
             } else {
                 assert!(s.wi.z * wo.z < 0.0);
                 let expect = 1.0 / (fr.eta_ti * fr.eta_ti);
                 assert!((throughput - Rgb::splat(expect)).abs().max_element() < 1e-5 * expect);
+                // The record's η is the one whose square the radiance throughput was divided by.
+                assert!((s.eta * s.eta * expect - 1.0).abs() < 1e-5, "eta {} vs eta_ti {}", s.eta, fr.eta_ti);
                 let si = m.sample(wo, [0.99999, 0.5, 0.5], TransportMode::Importance).unwrap();
                 if si.lobe == 1 {
                     assert!((si.f * si.wi.z.abs() / si.pdf - Rgb::ONE).abs().max_element() < 1e-5);
