@@ -49,6 +49,41 @@ pub enum Light {
     ImageEnvironment(ImageEnvironment),
 }
 
+/// How an emitter's emission is spread over positions and directions (pbrt-v4's `LightType`).
+/// Delta emitters (a point or spot light: one position; a directional light: one direction) have
+/// no density a ray can hit, so every technique that finds emission by hitting it has density 0,
+/// and estimators and MIS weights must treat them apart. The bidirectional MIS weights
+/// (integrator/bdpt/mis.rs) do not yet, so the scene builder refuses them (docs/scene-format.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EmitterKind {
+    /// Emission from surfaces with area (`Light::Area`).
+    Area,
+    /// Emission from infinity over a solid angle (the environments).
+    Infinite,
+    /// Emission from a single point (point and spot lights).
+    DeltaPosition,
+    /// Emission in a single direction (directional lights).
+    DeltaDirection,
+}
+
+impl EmitterKind {
+    /// Whether the emitter is concentrated on a single position or direction.
+    pub fn is_delta(self) -> bool {
+        matches!(self, EmitterKind::DeltaPosition | EmitterKind::DeltaDirection)
+    }
+}
+
+impl std::fmt::Display for EmitterKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            EmitterKind::Area => "area",
+            EmitterKind::Infinite => "infinite (environment)",
+            EmitterKind::DeltaPosition => "delta-position (point or spot)",
+            EmitterKind::DeltaDirection => "delta-direction (directional)",
+        })
+    }
+}
+
 /// Emission `radiance` from every triangle of one mesh, on the side the geometric normal points to
 /// (or both sides when `two_sided`).
 #[derive(Debug)]
@@ -209,6 +244,14 @@ impl Light {
     }
     pub fn is_environment(&self) -> bool {
         !matches!(self, Light::Area(_))
+    }
+    /// The emitter's kind. The match lists every variant on purpose: a new emitter must say here
+    /// whether it is a delta emitter, which the scene builder then refuses.
+    pub fn kind(&self) -> EmitterKind {
+        match self {
+            Light::Area(_) => EmitterKind::Area,
+            Light::ConstantEnvironment(_) | Light::ImageEnvironment(_) => EmitterKind::Infinite,
+        }
     }
 }
 

@@ -5,6 +5,8 @@
 //!
 //! The recurrence runs in f64 and maps zero densities (delta lobes) to 1 so that ratios neither
 //! vanish nor divide by zero; techniques that would connect at a delta vertex get weight zero.
+//! Delta emitters (point, spot, directional lights) are not handled: the scene builder refuses
+//! them (`light::EmitterKind`), and `emitter_is_delta` stops a render that got one anyway.
 
 use serde::{Deserialize, Serialize};
 
@@ -143,10 +145,23 @@ pub(crate) fn density_ratios(scene: &Scene, c: &ConnectionView, ratios: &mut Vec
     for i in (0..s).rev() {
         let (rev, fwd, delta) = lig(i);
         r *= remap0(rev) / remap0(fwd);
-        // No delta emitters exist, so only the preceding vertex's lobe matters.
-        let delta_prev = if i > 0 { lig(i - 1).2 } else { false };
+        // pbrt-v4 uses IsDeltaLight of the emitter for i = 0 (no camera path hits a delta
+        // emitter); the scene builder refuses delta emitters, so it is false here.
+        let delta_prev = if i > 0 { lig(i - 1).2 } else { emitter_is_delta(scene, c) };
         ratios[i] = if !delta && !delta_prev { r } else { 0.0 };
     }
+}
+
+/// Whether the emitter that starts the light subpath of `c` (s ≥ 1) is a delta emitter. Nothing
+/// else here handles one (`Vertex::pdf_light_origin`, the s = 1 connection and the subpath sampler
+/// assume area or infinite emitters), which is why the scene builder refuses them; a scene put
+/// together without the builder stops here rather than render with wrong weights.
+fn emitter_is_delta(scene: &Scene, c: &ConnectionView) -> bool {
+    let emitter = if c.s == 1 { c.qs } else { c.light.first() };
+    if let Some(kind) = emitter.and_then(|v| v.light).map(|l| scene.lights[l as usize].kind()) {
+        assert!(!kind.is_delta(), "BDPT MIS weights do not handle {kind} emitters (the scene builder refuses them)");
+    }
+    false
 }
 
 /// The MIS weight of the technique whose density ratios are `ratios` (with `ratios[s] = 1`).
