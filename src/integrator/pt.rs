@@ -405,8 +405,8 @@ mod tests {
     /// E[reweighted throughput] = β for every β and η² state: over the midpoint grid u_k =
     /// (k + ½)/N the number of survivors differs from N·q by at most 1, so each channel's mean of
     /// survivor/β is within 1/(N q) of 1 (q ≥ 8.9e-4 here: ≤ 1.2e-2 at N = 10⁵), plus f32
-    /// rounding of β/q (≤ 1e-6). A reweighting by 1/max βᵢ (forgetting η²) fails this, measured
-    /// 0.444 and 2.25 for η² = 2.25 and 1/2.25.
+    /// rounding of β/q (≤ 1e-6). A reweighting by 1/max βᵢ (forgetting η²) fails this: measured
+    /// 2.25 at β = (0.4, 0.3, 0.1), η² = 2.25 (bound 1.2e-5).
     #[test]
     fn roulette_keeps_the_expected_weight() {
         const N: usize = 100_000;
