@@ -92,7 +92,8 @@ fn same_seed_and_threads_give_the_same_image_and_another_seed_does_not() {
 /// the image depend on the seed and the work units only, never on the thread count, for
 /// integrators that splat to any pixel (light tracing; BDPT's t = 1 techniques) as for tiles.
 /// Same seed, 1 vs 3 threads: bit-identical films, images and ray counts. 48×48 on the Cornell box
-/// and its glossy variant, 64 spp (3 passes): about 10 s for all three integrators.
+/// and its glossy variant, 64 spp (3 passes): 21 s for all three integrators on 2 cores at load
+/// average 15 (BDPT is most of it).
 ///
 /// On the old driver (units dealt to slots `u mod threads`, a film per slot, slot films summed in
 /// slot order) BDPT's film sums differed between 1 and 3 threads at 114 of 2304 pixels (Cornell)
