@@ -173,6 +173,7 @@ pub struct SplatBuffer {
 }
 
 impl SplatBuffer {
+    /// A buffer for a film of at most 2^32 pixels (the driver refuses larger films).
     pub fn new(width: usize, height: usize) -> SplatBuffer {
         assert!(width * height <= u32::MAX as usize, "a film of {width}×{height} pixels has more than 2^32 pixels");
         SplatBuffer { width, height, splats: Vec::new() }

@@ -216,6 +216,10 @@ impl Driver {
 
     /// The same on the given clock.
     pub fn with_clock(job: &RenderJob, width: u32, height: u32, clock: Arc<dyn Clock>) -> Result<Driver, RenderError> {
+        // Work units record pixels as u32 indices (`SplatBuffer`).
+        if width as u64 * height as u64 > u32::MAX as u64 {
+            return Err(RenderError::FilmTooLarge { width, height });
+        }
         let threads =
             if job.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { job.threads };
         let pool = ThreadPoolBuilder::new()
@@ -755,6 +759,12 @@ mod tests {
         let times: Vec<Duration> = previews.iter().map(|p| p.0).collect();
         assert_eq!(times, [Duration::from_micros(65_600), Duration::from_micros(91_200)]);
         assert!(previews.iter().all(|p| p.1 == 0.5), "{previews:?}");
+    }
+
+    #[test]
+    fn a_film_beyond_u32_pixel_indices_is_an_error() {
+        let err = Driver::new(&job(1, 1), 70_000, 70_000).err().expect("too large");
+        assert!(err.to_string().contains("70000×70000"), "{err}");
     }
 
     #[test]

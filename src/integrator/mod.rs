@@ -84,6 +84,8 @@ pub enum RenderError {
     Settings(String),
     #[error("could not create the thread pool: {0}")]
     ThreadPool(String),
+    #[error("a {width}×{height} film has more than 2^32 pixels, more than a render can address")]
+    FilmTooLarge { width: u32, height: u32 },
     #[error("unknown integrator '{0}': expected one of {names}", names = INTEGRATOR_NAMES.join(", "))]
     UnknownIntegrator(String),
 }
