@@ -32,7 +32,7 @@ use plexus::integrator::{create, Budget, NoProgress, RenderJob};
 use plexus::sampling::Rng;
 use plexus::scene::load_scene;
 use plexus::scene::Scene;
-use plexus::spectrum::{is_black, luminance};
+use plexus::spectrum::is_black;
 use plexus::stats::Counters;
 
 fn scene(name: &str, width: u32, height: u32) -> Scene {
@@ -203,31 +203,5 @@ fn technique_images_sum_to_the_bdpt_image() {
         let want = out.image.pixels[i].as_dvec3();
         let err = (sum - want).abs().max_element();
         assert!(err <= 1e-5 * want.abs().max_element() + 1e-7, "pixel {i}: layers sum to {sum:?}, image {want:?}");
-    }
-}
-
-/// Throughput of BDPT against the path tracer on the Cornell box (docs/benchmarks.md, "BDPT vs PT").
-/// Run with `cargo test --release --test bdpt -- --ignored --nocapture bench`.
-#[test]
-#[ignore]
-fn bench_bdpt_vs_pt() {
-    let scene = scene("cornell-box", 256, 256);
-    for (name, spp) in [("pt", 64u64), ("bdpt", 16), ("light", 64)] {
-        let params: toml::Table = toml::from_str("max_depth = 16").expect("params");
-        let integrator = create(name, &params).expect("integrator");
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let job = RenderJob { budget: Budget::SamplesPerPixel(spp), seed: 1, threads };
-        let out = integrator.render(&scene, &job, &NoProgress).expect("render");
-        let secs = out.wall_time.as_secs_f64();
-        let c = &out.counters;
-        println!(
-            "{name:5} 256x256 {spp:3} spp, {threads} threads: {secs:7.2} s, {:9.0} samples/s, {:6.2} Mrays/s \
-             ({} rays + {} shadow rays), image mean {:.4}",
-            c.samples as f64 / secs,
-            c.total_rays() as f64 / secs / 1e6,
-            c.rays,
-            c.shadow_rays,
-            luminance(glam::Vec3::from(out.image.mean().map(|v| v as f32)))
-        );
     }
 }

@@ -229,34 +229,41 @@ fn bad_arguments_are_usage_errors() {
     }
 }
 
-/// `--preview-every` writes the current image to the outputs while the render runs: with a 2 s
-/// budget and previews every 0.2 s, the EXR exists (written by a preview) long before the render
-/// ends, and the final image is still written and finite.
+/// `--preview-every` with previews at every pass boundary (an interval of 1 ns; 4096 spp on the
+/// 8×6 scene are 3 passes of 1366 samples per pixel): the render succeeds, writes its outputs, and
+/// its final image is bit-identical to the same render without previews, so preview writes neither
+/// fail the render nor leave a preview where the final image belongs. (That previews arrive at
+/// the interval and are normalised is tested on a fake clock in `integrator::driver`; that the
+/// CLI writes what it receives, in `cli::progress`.) 3.8 s on 2 cores at load average 15; no
+/// clock is involved.
 #[test]
-fn previews_are_written_during_the_render() {
+fn previews_leave_the_final_image_unchanged() {
     let dir = temp_dir("preview");
     let scene = write(&dir, "s.toml", &good_scene());
-    let out = dir.join("p.exr");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_plexus"))
-        .args(["render", &scene, "--time", "2", "--preview-every", "0.2", "--out", &out.to_string_lossy()])
-        .current_dir(&dir)
-        .env("CI", "true")
-        .spawn()
-        .expect("run plexus");
-    let start = std::time::Instant::now();
-    let mut seen_at = None;
-    while start.elapsed().as_secs_f64() < 1.6 {
-        if out.exists() {
-            seen_at = Some(start.elapsed().as_secs_f64());
-            break;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    let status = child.wait().expect("wait");
-    assert!(status.success());
-    let seen_at = seen_at.expect("no preview was written within 1.6 s of a 2 s render");
-    println!("first preview seen after {seen_at:.2} s");
-    assert!(out.exists() && dir.join("p.json").exists());
+    let common = ["--spp", "4096", "--seed", "5", "--threads", "2"];
+    let with =
+        plexus(&[&["render", &scene, "--preview-every", "1e-9", "--out", "with.exr"][..], &common].concat(), &dir);
+    assert!(with.status.success(), "{}", stderr(&with));
+    let without = plexus(&[&["render", &scene, "--out", "without.exr"][..], &common].concat(), &dir);
+    assert!(without.status.success(), "{}", stderr(&without));
+    let read = |name: &str| {
+        exr::prelude::read_first_rgba_layer_from_file(
+            dir.join(name),
+            |res, _| vec![[0f32; 3]; res.width() * res.height()],
+            |px: &mut Vec<[f32; 3]>, pos, (r, g, b, _a): (f32, f32, f32, f32)| px[pos.y() * 8 + pos.x()] = [r, g, b],
+        )
+        .expect("exr readable")
+        .layer_data
+        .channel_data
+        .pixels
+    };
+    let (a, b) = (read("with.exr"), read("without.exr"));
+    assert!(a.iter().flatten().all(|v| v.is_finite()) && a.iter().flatten().any(|v| *v > 0.0));
+    let bits = |p: &Vec<[f32; 3]>| p.iter().map(|v| v.map(f32::to_bits)).collect::<Vec<_>>();
+    assert_eq!(bits(&a), bits(&b), "previews changed the final image");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("with.json")).expect("stats written")).expect("JSON");
+    assert_eq!(json["integrator_stats"]["passes"], 3);
 }
 
 #[test]

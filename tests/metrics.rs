@@ -201,37 +201,39 @@ fn convergence_plot_is_written() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Equal-time studies need honest time budgets: every integrator's `--time` render, setup of its
-/// own (MLT's bootstrap) included, ends within the budget plus one pass. A pass is one sample per
-/// pixel (image integrators) or about one mutation per pixel (MLT), a few tens of milliseconds on a
-/// 64×64 film; the bound allows 10% + 0.25 s for thread scheduling on a loaded 2-core machine.
-/// Before passes were shrunk for time budgets, bdpt at `--time 3` ran up to 8 s.
+/// The wall time a render reports is its own: never more than the time measured around the call.
+/// (That a time budget is kept — passes start only if predicted to fit, setup inside the budget —
+/// is tested exactly on a fake clock in `integrator::driver`'s unit tests; the wall-clock figures
+/// of `--time` renders are measured by scripts/bench-time-budgets.sh.) Every integrator, 1 spp on
+/// a 32×32 Cornell box, MLT with a 2000-path bootstrap: about 1 s in all.
 #[test]
-fn time_budgets_are_met() {
+fn reported_wall_time_is_within_the_measured_time() {
     use plexus::camera::Camera;
     use plexus::integrator::{create, Budget, NoProgress, RenderJob, INTEGRATOR_NAMES};
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.toml");
     let mut scene = plexus::scene::load_scene(&path, None).expect("scene").scene;
     let c = &scene.camera;
-    scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, 64, 64);
-    let budget = 1.5;
+    scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, 32, 32);
     for name in INTEGRATOR_NAMES {
-        let integrator = create(name, &toml::Table::new()).expect("integrator");
-        let job = RenderJob { budget: Budget::Seconds(budget), seed: 1, threads: 2 };
+        let params: toml::Table =
+            if name.ends_with("mlt") { toml::from_str("bootstrap = 2000").expect("toml") } else { toml::Table::new() };
+        let integrator = create(name, &params).expect("integrator");
+        let job = RenderJob { budget: Budget::SamplesPerPixel(1), seed: 1, threads: 2 };
         let start = std::time::Instant::now();
         let out = integrator.render(&scene, &job, &NoProgress).expect("render");
         let wall = start.elapsed().as_secs_f64();
-        println!("{name}: {wall:.3} s (reported {:.3} s)", out.wall_time.as_secs_f64());
-        assert!(wall <= 1.1 * budget + 0.25, "{name}: {wall:.2} s for a {budget} s budget");
         assert!(out.wall_time.as_secs_f64() <= wall + 1e-3, "{name}: reported time exceeds the measured one");
     }
 }
 
 /// Previews (`Progress::preview`, behind `plexus render --preview-every`) are the render's
-/// normalised image so far: for every integrator, several arrive during a 1.5 s render, and the
-/// last one's mean is within 10% of the final image's (an unnormalised film would be off by the
-/// sample count; the remaining difference is the noise of the last passes). A sample-budget render
-/// with previews is bit-identical to one without: previews only read the films.
+/// normalised image so far: for every integrator, with an interval of 1 ns (so a preview at every
+/// pass boundary, whatever the machine's speed) and a sample budget of at least 3 passes, at least
+/// 3 arrive, and the last one's mean is within 10% of the final image's (an unnormalised film
+/// would be off by the sample count; for MLT the remaining difference is b's refinement by the
+/// last pass). A sample-budget render with previews is bit-identical to one without: previews only
+/// read the films. 48×48: 87 spp (3 passes of 29) for pt, bdpt and light, 16 mutations per pixel
+/// (16 passes) for MLT; 13 s in all on 2 cores at load average 15.
 #[test]
 fn previews_are_normalised_and_do_not_change_the_image() {
     use plexus::camera::Camera;
@@ -243,7 +245,7 @@ fn previews_are_normalised_and_do_not_change_the_image() {
         fn advance(&self, _: u64) {}
         fn message(&self, _: &str) {}
         fn preview_interval(&self) -> Option<f64> {
-            Some(0.1)
+            Some(1e-9)
         }
         fn preview(&self, image: &Image) {
             let m = image.mean();
@@ -259,7 +261,8 @@ fn previews_are_normalised_and_do_not_change_the_image() {
             if name.ends_with("mlt") { toml::from_str("bootstrap = 20000").unwrap() } else { toml::Table::new() };
         let integrator = create(name, &params).expect("integrator");
         let recorder = Recorder(Mutex::new(Vec::new()));
-        let job = RenderJob { budget: Budget::Seconds(1.5), seed: 1, threads: 2 };
+        let spp = if name.ends_with("mlt") { 16 } else { 87 };
+        let job = RenderJob { budget: Budget::SamplesPerPixel(spp), seed: 1, threads: 2 };
         let out = integrator.render(&scene, &job, &recorder).expect("render");
         let m = out.image.mean();
         let final_mean = (m[0] + m[1] + m[2]) / 3.0;

@@ -99,3 +99,25 @@ impl Progress for BarProgress {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A preview is written to every output, readable, with the image it was given.
+    #[test]
+    fn preview_writes_every_output() {
+        let dir = std::env::temp_dir().join(format!("plexus-preview-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let outputs = vec![dir.join("p.exr"), dir.join("p.png")];
+        let progress = BarProgress::new(None, false)
+            .with_previews(Some(Previews { every_seconds: 1.0, outputs: outputs.clone() }));
+        let mut image = Image::new(3, 2);
+        image.pixels[4] = glam::Vec3::new(0.25, 0.5, 1.0);
+        progress.preview(&image);
+        let read = plexus::film::exr_io::read_exr(&outputs[0]).expect("preview EXR readable");
+        assert_eq!(read.pixels, image.pixels);
+        assert!(outputs[1].exists());
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

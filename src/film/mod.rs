@@ -1,6 +1,7 @@
-//! Images and accumulation. Every worker accumulates into its own buffer (splats to any pixel
-//! included); buffers are merged in worker order, so the same seed and thread count give a
-//! bit-identical image.
+//! Images and accumulation. A render's film is an [`Accumulator`] of unnormalised f64 sums; a
+//! work unit records its contributions (splats to any pixel included) in its own [`SplatBuffer`],
+//! which the driver applies to the film in unit order, so the image depends on the work units only,
+//! not on which thread ran them (`integrator::driver`).
 
 pub mod exr_io;
 pub mod oiio;
@@ -58,25 +59,39 @@ impl Accumulator {
     /// Adds `value` to pixel (x, y). Non-finite values must be filtered by the caller (and counted).
     #[inline]
     pub fn add(&mut self, x: usize, y: usize, value: Rgb) {
-        debug_assert!(crate::spectrum::is_finite(value));
-        let s = &mut self.sums[y * self.width + x];
-        s[0] += value.x as f64;
-        s[1] += value.y as f64;
-        s[2] += value.z as f64;
+        self.add_at(y * self.width + x, value);
     }
     /// Adds `value` to the pixel containing the continuous raster position (box filter); positions
     /// off the film are ignored. Returns whether it landed.
     #[inline]
     pub fn splat(&mut self, raster: Vec2, value: Rgb) -> bool {
-        if !(raster.x >= 0.0 && raster.y >= 0.0) {
-            return false;
+        match pixel_of(raster, self.width, self.height) {
+            Some(index) => {
+                self.add_at(index, value);
+                true
+            }
+            None => false,
         }
-        let (x, y) = (raster.x as usize, raster.y as usize);
-        if x >= self.width || y >= self.height {
-            return false;
+    }
+    #[inline]
+    fn add_at(&mut self, index: usize, value: Rgb) {
+        debug_assert!(crate::spectrum::is_finite(value));
+        let s = &mut self.sums[index];
+        s[0] += value.x as f64;
+        s[1] += value.y as f64;
+        s[2] += value.z as f64;
+    }
+    /// Adds a unit's recorded contributions, one by one in the order they were made: the same sums,
+    /// bit for bit, as if the unit had added them to this film directly.
+    pub fn apply(&mut self, buffer: &SplatBuffer) {
+        debug_assert_eq!((buffer.width, buffer.height), (self.width, self.height));
+        for &(index, value) in &buffer.splats {
+            self.add_at(index as usize, value);
         }
-        self.add(x, y, value);
-        true
+    }
+    /// The unnormalised sums, row-major: what a checkpoint or a merge of renders works on.
+    pub fn sums(&self) -> &[[f64; 3]] {
+        &self.sums
     }
     /// Adds another buffer into this one.
     pub fn merge(&mut self, other: &Accumulator) {
@@ -134,6 +149,68 @@ impl Accumulator {
     }
 }
 
+/// The pixel index of the continuous raster position on a `width`×`height` film (box filter), or
+/// `None` off the film (NaN included).
+#[inline]
+fn pixel_of(raster: Vec2, width: usize, height: usize) -> Option<usize> {
+    if !(raster.x >= 0.0 && raster.y >= 0.0) {
+        return None;
+    }
+    let (x, y) = (raster.x as usize, raster.y as usize);
+    (x < width && y < height).then_some(y * width + x)
+}
+
+/// One work unit's film contributions in one pass, in the order the unit made them (pixel index
+/// and value, 16 bytes each). Recording them instead of adding them to a shared or per-thread film
+/// is what lets the driver apply every unit's contributions in unit order: the film's sums then do
+/// not depend on how units were spread over threads. The same `add`/`splat` calls as
+/// [`Accumulator`]; cleared (capacity kept) once applied.
+#[derive(Clone, Debug, Default)]
+pub struct SplatBuffer {
+    pub width: usize,
+    pub height: usize,
+    splats: Vec<(u32, Rgb)>,
+}
+
+impl SplatBuffer {
+    /// A buffer for a film of at most 2^32 pixels (the driver refuses larger films).
+    pub fn new(width: usize, height: usize) -> SplatBuffer {
+        assert!(width * height <= u32::MAX as usize, "a film of {width}×{height} pixels has more than 2^32 pixels");
+        SplatBuffer { width, height, splats: Vec::new() }
+    }
+    /// Records `value` for pixel (x, y). Non-finite values must be filtered by the caller (and
+    /// counted).
+    #[inline]
+    pub fn add(&mut self, x: usize, y: usize, value: Rgb) {
+        debug_assert!(x < self.width && y < self.height && crate::spectrum::is_finite(value));
+        self.splats.push(((y * self.width + x) as u32, value));
+    }
+    /// Records `value` for the pixel containing the raster position (box filter); positions off
+    /// the film are ignored. Returns whether it landed.
+    #[inline]
+    pub fn splat(&mut self, raster: Vec2, value: Rgb) -> bool {
+        debug_assert!(crate::spectrum::is_finite(value));
+        match pixel_of(raster, self.width, self.height) {
+            Some(index) => {
+                self.splats.push((index as u32, value));
+                true
+            }
+            None => false,
+        }
+    }
+    /// Number of recorded contributions.
+    pub fn len(&self) -> usize {
+        self.splats.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.splats.is_empty()
+    }
+    /// Forgets the contributions, keeping the allocation for the unit's next pass.
+    pub fn clear(&mut self) {
+        self.splats.clear();
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -148,5 +225,26 @@ mod tests {
         let img = a.to_image(1.0);
         assert_eq!(img.get(2, 1), Rgb::ONE);
         assert_eq!(img.pixels.iter().map(|p| p.x).sum::<f32>(), 1.0);
+    }
+
+    /// A recorded buffer applied to a film gives the same bits as adding to the film directly.
+    #[test]
+    fn applied_buffer_equals_direct_accumulation() {
+        let mut direct = Accumulator::new(5, 4);
+        let mut buffer = SplatBuffer::new(5, 4);
+        let mut rng = crate::sampling::Rng::new(3, 0);
+        for _ in 0..200 {
+            let raster = Vec2::new(rng.uniform() * 6.0 - 0.5, rng.uniform() * 5.0 - 0.5);
+            let value = Rgb::new(rng.uniform(), rng.uniform() * 1e-3, rng.uniform() * 1e3);
+            assert_eq!(direct.splat(raster, value), buffer.splat(raster, value));
+            direct.add(1, 2, value);
+            buffer.add(1, 2, value);
+        }
+        let mut applied = Accumulator::new(5, 4);
+        applied.apply(&buffer);
+        let bits = |a: &Accumulator| a.sums.iter().flat_map(|s| s.map(f64::to_bits)).collect::<Vec<_>>();
+        assert_eq!(bits(&applied), bits(&direct));
+        buffer.clear();
+        assert!(buffer.is_empty());
     }
 }

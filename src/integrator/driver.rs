@@ -1,46 +1,69 @@
-//! The parallel render driver every integrator reuses: a thread pool, a deterministic partition of
-//! the work, per-worker film and counters merged in a fixed order, sample and time budgets, and
-//! progress reports.
+//! The parallel render driver every integrator reuses, and the render model they share.
 //!
-//! # The partition
+//! # The render model
 //!
-//! An integrator describes its work as `U` *units* (image tiles, batches of light paths, Markov
-//! chains) that are all visited once per *pass*. The driver runs passes until the budget is spent:
-//! a fixed number of passes for sample budgets, or passes while the deadline allows for time
-//! budgets. Work item `(pass, unit)` has the random stream `Rng::new(seed, pass · U + unit)`.
+//! A render is a set of deterministic *work items*: every *unit* (an image tile, a batch of light
+//! paths, a Markov chain) is visited once per *pass*, and item `(pass, unit)` draws only from the
+//! random stream `Rng::new(seed, pass · units + unit)`. What an item adds to the film is recorded
+//! in the unit's own [`SplatBuffer`] (its tile's samples, or splats to any pixel) and, when the
+//! pass ends, the buffers are applied to the one film **in unit order**. The film's bytes therefore
+//! depend on the seed and the work units only: neither on the thread count nor on which thread ran
+//! which unit, for splatting integrators (light tracing, BDPT's t = 1 techniques) as much as for
+//! tiles. (A buffer applied one value at a time in recorded order gives exactly the sums the unit
+//! would have added directly, see [`Accumulator::apply`].) The price is memory: a pass's
+//! contributions are all held until it ends, 16 bytes each — a pass of one sample per pixel at
+//! 1920×1080 is 33 MB for the path tracer, and a few times that for light tracing or BDPT (one
+//! entry per camera connection). Applying each buffer as soon as all lower units are done would
+//! bound it, if that ever matters.
 //!
-//! Unit `u` always runs on worker *slot* `u mod threads`, in increasing unit order within a pass and
-//! in increasing pass order. Each slot owns one [`Accumulator`] (it may add to any pixel: splats are
-//! allowed) and one [`Counters`]; at the end the slots are merged in slot order. Nothing depends on
-//! which OS thread executes a slot or on timing, so the same seed and thread count give a
-//! bit-identical image. When each unit only writes to its own pixels (a path tracer's tiles), every
-//! pixel is written by exactly one slot and the image is even independent of the thread count.
+//! The film holds **unnormalised sums**. The normalisation (1 / samples per pixel; MLT's per-depth
+//! b / mutations) is applied only when an image is produced: the final output and previews. So a
+//! film can be merged with another, resumed, or shown at any pass boundary without undoing a scale.
+//!
+//! A **pass boundary** is where a render can stop, save and resume (interrupts, checkpoints and
+//! shards, issues 19 and 21, build on it). Everything the rest of the render depends on is then in
+//! a [`PassBoundary`]: the passes done, the film's sums, the units' states (a chain's sampler and
+//! current path) and the slots' counters and per-slot states. With the scene, the job and the
+//! integrator's settings, that is what a checkpoint must save; the next pass is `passes_done` for
+//! every unit, whatever machine or thread count resumes it.
+//!
+//! # Threads
+//!
+//! Within a pass, unit `u` runs on worker *slot* `u mod threads`, in increasing unit order. A slot
+//! owns [`Counters`] (integer sums, so their merge does not depend on the dealing) and the
+//! integrator's per-slot state `S` (scratch buffers; statistics). Per-slot state is created once per
+//! slot and returned in slot order; it must not carry anything the image depends on, or the image
+//! would depend on the dealing again — what a unit's future depends on belongs in the unit. (MLT's
+//! films still live in its per-slot state, so its image still depends on the thread count until they
+//! move into the units' buffers.) Every worker thread sets flush-to-zero / denormals-are-zero in its
+//! start handler (Embree wants it, and it keeps both accelerators' arithmetic identical), and every
+//! item runs inside the pool, so no ray is traced from a thread without the flags.
+//!
+//! # Budgets and the clock
+//!
+//! A sample budget is a fixed number of passes. A time budget runs passes while the next one is
+//! predicted to end before the deadline (at least one pass always runs). Time is read from a
+//! [`Clock`]: the wall clock in renders, a fake one in tests, so the budget and preview logic are
+//! tested exactly rather than against a loaded machine's timing.
 //!
 //! # How the integrators fit
 //!
-//! - **Path tracing / BDPT**: a unit is a tile; an item renders `spp_per_pass` samples for each of
-//!   the tile's pixels with the item's stream. [`ImagePlan`] computes tiles and the pass schedule.
-//! - **Light tracing**: a unit is a batch of light subpaths (e.g. as many as a tile has pixels
-//!   times `spp_per_pass`); each item splats to arbitrary pixels of its slot's accumulator, and the
-//!   image is scaled by 1 / (total light paths) at the end.
-//! - **MCMC**: a unit is a Markov chain whose state (sampler, current path, its contribution)
-//!   lives in the unit value `U` itself, which the driver hands back mutably to the kernel on every
-//!   pass (`units: Vec<U>`) and returns at the end; an item is a chain *segment* of a fixed number
-//!   of mutations. The chain keeps its own `Rng::new(seed, chain)` inside `U` and may ignore the
-//!   item stream. Mutations per pixel translate into `passes × units × segment length`; a time
-//!   budget just runs more segments. Per-slot state `S` (scratch buffers, per-slot statistics) is
-//!   created once per slot and returned in slot order for a deterministic merge.
-//!
-//! Every worker thread of the pool sets flush-to-zero / denormals-are-zero in its start handler
-//! (Embree wants it, and it keeps both accelerators' arithmetic identical), and every item runs
-//! inside the pool, so no ray is traced from a thread without the flags.
+//! - **Path tracing, BDPT, light tracing** ([`ImageRender`]): a unit is a tile; an item takes
+//!   `spp_in_pass` samples for each of the tile's pixels (for light tracing: as many light paths,
+//!   splatted wherever they land) with the item's stream. The image is the film over the samples
+//!   per pixel; [`ImagePlan`] computes tiles and the pass schedule.
+//! - **MCMC**: a unit is a Markov chain whose state lives in the unit value `U` itself, which the
+//!   driver hands back mutably to the kernel on every pass and returns at the end; an item is a
+//!   chain *segment* of a fixed number of mutations. The chain keeps its own
+//!   `Rng::new(seed, chain)` and may ignore the item stream. A time budget just runs more segments.
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use rayon::{ThreadPool, ThreadPoolBuilder};
 
-use super::{Budget, Progress, RenderError, RenderJob};
-use crate::film::{Accumulator, Image};
+use super::{Budget, Progress, RenderError, RenderJob, RenderOutput};
+use crate::film::{Accumulator, Image, SplatBuffer};
 use crate::sampling::Rng;
 use crate::stats::Counters;
 
@@ -51,6 +74,35 @@ pub const TILE_SIZE: u32 = 16;
 /// costs nothing measurable even for tiny images.
 const MIN_SAMPLES_PER_PASS: u64 = 1 << 16;
 
+/// Where the driver reads the time: the render's budget, pass predictions and preview interval.
+pub trait Clock: Send + Sync {
+    /// Time since the clock's origin (any fixed instant before the render).
+    fn now(&self) -> Duration;
+}
+
+/// The real clock: time since it was created.
+pub struct WallClock {
+    origin: Instant,
+}
+
+impl WallClock {
+    pub fn new() -> WallClock {
+        WallClock { origin: Instant::now() }
+    }
+}
+
+impl Default for WallClock {
+    fn default() -> WallClock {
+        WallClock::new()
+    }
+}
+
+impl Clock for WallClock {
+    fn now(&self) -> Duration {
+        self.origin.elapsed()
+    }
+}
+
 /// How many passes to run.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Passes {
@@ -58,26 +110,28 @@ pub enum Passes {
     Count(u64),
     /// Passes until this many seconds have elapsed since the run started: a new pass starts only
     /// if it is predicted to end before the deadline (at least one pass always runs). The
-    /// prediction is the longer of the last pass and the mean pass: the last follows a change of
-    /// the machine's load or of the work (a chain segment meeting long paths), the mean keeps one
-    /// fast pass from starting a slow one; the first pass, slow with thread start-up and cold
-    /// caches, only counts through the mean.
+    /// prediction is the longer of the last pass and the mean pass so far: the last follows a
+    /// change of the machine's load or of the work (a chain segment meeting long paths), the mean
+    /// keeps one fast pass from starting a slow one.
     Seconds(f64),
-    /// Passes until this instant, by the same rule as `Seconds`: for integrators that work before
-    /// the run (MLT's bootstrap) and must fit the whole render into the user's budget.
-    Deadline(Instant),
+    /// Passes until the driver's clock reads this, by the same rule as `Seconds`: for renders
+    /// that work before the run (setup, MLT's bootstrap) and must fit into the user's budget.
+    Deadline(Duration),
 }
 
 impl Passes {
-    /// This schedule with a `Seconds` budget counted from `start` (when the render began, before
-    /// its setup) instead of from the start of the run, so that setup is inside the budget.
-    pub fn counted_from(self, start: Instant) -> Passes {
+    /// This schedule with a `Seconds` budget counted from the clock reading `start` (when the
+    /// render began, before its setup) instead of from the start of the run, so that setup is
+    /// inside the budget. A budget too long for a `Duration` stays `Seconds` (and then never ends
+    /// a run early).
+    pub fn counted_from(self, start: Duration) -> Passes {
         match self {
-            Passes::Seconds(s) => match Duration::try_from_secs_f64(s.max(0.0)).ok().and_then(|d| start.checked_add(d))
-            {
-                Some(at) => Passes::Deadline(at),
-                None => self,
-            },
+            Passes::Seconds(s) => {
+                match Duration::try_from_secs_f64(s.max(0.0)).ok().and_then(|d| start.checked_add(d)) {
+                    Some(at) => Passes::Deadline(at),
+                    None => self,
+                }
+            }
             other => other,
         }
     }
@@ -100,18 +154,40 @@ impl WorkItem {
     }
 }
 
-/// What a worker slot owns: its film, its counters and the integrator's per-slot state.
+/// What a worker slot owns while it runs a unit.
 pub struct Slot<S> {
     /// Slot index, 0..threads.
     pub index: usize,
-    pub film: Accumulator,
+    /// The film contributions of the item being run: the unit's own buffer, which the driver
+    /// swaps in for the item and applies to the film in unit order when the pass ends.
+    pub film: SplatBuffer,
     pub counters: Counters,
     pub state: S,
 }
 
+/// A run between two passes: everything the rest of the render depends on (see the module docs),
+/// so what a checkpoint would save. Previews are built from it.
+pub struct PassBoundary<'a, U, S> {
+    /// Passes completed; the next pass runs items `(passes_done, unit)` for every unit.
+    pub passes_done: u64,
+    /// Unnormalised sums of every contribution of the passes done, applied in unit order.
+    pub film: &'a Accumulator,
+    /// The units, in unit order, with the state the kernel left in them.
+    pub units: &'a [U],
+    /// The slots (counters and per-slot state; their buffers are empty), in slot order.
+    pub slots: &'a [Slot<S>],
+    /// Clock time the run has taken, and its last pass took: what a time budget's next decision
+    /// depends on.
+    pub elapsed: Duration,
+    pub last_pass: Duration,
+}
+
+/// Builds a preview image from a pass boundary (see `Driver::run`).
+pub type Snapshot<'a, U, S> = dyn Fn(&PassBoundary<'_, U, S>) -> Image + 'a;
+
 /// What a run produced.
 pub struct RunOutput<U, S> {
-    /// The slots' films summed in slot order.
+    /// The film: unnormalised sums, every unit's contributions applied in unit order.
     pub film: Accumulator,
     /// The slots' counters summed in slot order.
     pub counters: Counters,
@@ -121,25 +197,33 @@ pub struct RunOutput<U, S> {
     pub slot_states: Vec<S>,
     /// Passes completed.
     pub passes: u64,
+    /// Clock time the run took.
     pub elapsed: Duration,
 }
 
-/// One slot and the units dealt to it (with their unit indices).
-type SlotWork<U, S> = (Slot<S>, Vec<(usize, U)>);
-
-/// A thread pool and the job's seed: runs passes of work items deterministically.
+/// A thread pool, a clock and the job's seed: runs passes of work items deterministically.
 pub struct Driver {
     pool: ThreadPool,
     threads: usize,
     seed: u64,
     width: usize,
     height: usize,
+    clock: Arc<dyn Clock>,
 }
 
 impl Driver {
     /// A driver for a `width`×`height` film with the job's thread count (0 means all available
-    /// cores) and seed.
+    /// cores) and seed, on the wall clock.
     pub fn new(job: &RenderJob, width: u32, height: u32) -> Result<Driver, RenderError> {
+        Driver::with_clock(job, width, height, Arc::new(WallClock::new()))
+    }
+
+    /// The same on the given clock.
+    pub fn with_clock(job: &RenderJob, width: u32, height: u32, clock: Arc<dyn Clock>) -> Result<Driver, RenderError> {
+        // Work units record pixels as u32 indices (`SplatBuffer`).
+        if width as u64 * height as u64 > u32::MAX as u64 {
+            return Err(RenderError::FilmTooLarge { width, height });
+        }
         let threads =
             if job.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { job.threads };
         let pool = ThreadPoolBuilder::new()
@@ -148,7 +232,7 @@ impl Driver {
             .start_handler(|_| crate::accel::embree::set_flush_denormals())
             .build()
             .map_err(|e| RenderError::ThreadPool(e.to_string()))?;
-        Ok(Driver { pool, threads, seed: job.seed, width: width as usize, height: height as usize })
+        Ok(Driver { pool, threads, seed: job.seed, width: width as usize, height: height as usize, clock })
     }
 
     /// Number of worker slots (= threads).
@@ -156,129 +240,130 @@ impl Driver {
         self.threads
     }
 
+    /// The clock the driver's budgets and previews read.
+    pub fn clock(&self) -> &dyn Clock {
+        self.clock.as_ref()
+    }
+
     /// Runs `kernel` on every (pass, unit) item. The kernel gets the item, its unit's state and its
-    /// slot, and returns the progress units it completed (e.g. pixel samples), which are reported
-    /// to `progress` after each item. When `progress` asks for previews
-    /// (`Progress::preview_interval`) and a `snapshot` is given, between passes at most that often
-    /// `snapshot(slots, passes done)` builds the current normalised image from the slots, which
-    /// `progress.preview` receives. Previews only read the films, so the image and its determinism
-    /// do not depend on them.
+    /// slot (whose `film` is the unit's buffer), and returns the progress units it completed (e.g.
+    /// pixel samples), which are reported to `progress` after each item. When `progress` asks for
+    /// previews (`Progress::preview_interval`) and a `snapshot` is given, at pass boundaries at
+    /// most that often (by the clock) `snapshot` builds the current normalised image, which
+    /// `progress.preview` receives. Previews only read the boundary, so the image and its
+    /// determinism do not depend on them.
     pub fn run<U, S, K>(
         &self,
-        units: Vec<U>,
+        mut units: Vec<U>,
         passes: Passes,
         progress: &dyn Progress,
         init_slot: impl Fn(usize) -> S,
         kernel: K,
-        snapshot: Option<&Snapshot<'_, S>>,
+        snapshot: Option<&Snapshot<'_, U, S>>,
     ) -> RunOutput<U, S>
     where
         U: Send,
         S: Send + Sync,
         K: Fn(&WorkItem, &mut U, &mut Slot<S>) -> u64 + Sync,
     {
-        let preview_every = progress.preview_interval().filter(|s| s.is_finite() && *s > 0.0);
-        let mut last_preview = Instant::now();
-        let start = Instant::now();
+        let clock = self.clock.as_ref();
+        let start = clock.now();
+        let preview_every = progress
+            .preview_interval()
+            .filter(|s| s.is_finite() && *s > 0.0)
+            .and_then(|s| Duration::try_from_secs_f64(s).ok());
+        let mut last_preview = start;
         let unit_count = units.len();
         let threads = self.threads;
-        // Deal the units to slots: unit u to slot u mod threads, keeping increasing unit order.
-        let mut per_slot: Vec<SlotWork<U, S>> = (0..threads)
-            .map(|i| {
-                let slot = Slot {
-                    index: i,
-                    film: Accumulator::new(self.width, self.height),
-                    counters: Counters::default(),
-                    state: init_slot(i),
-                };
-                (slot, Vec::with_capacity(unit_count / threads + 1))
+        let (width, height) = (self.width, self.height);
+        let mut film = Accumulator::new(width, height);
+        let mut buffers: Vec<SplatBuffer> = (0..unit_count).map(|_| SplatBuffer::new(width, height)).collect();
+        let mut slots: Vec<Slot<S>> = (0..threads)
+            .map(|index| Slot {
+                index,
+                film: SplatBuffer::new(width, height),
+                counters: Counters::default(),
+                state: init_slot(index),
             })
             .collect();
-        for (u, unit) in units.into_iter().enumerate() {
-            per_slot[u % threads].1.push((u, unit));
-        }
 
         let seed = self.seed;
-        // The instant by which passes must end; `None` for pass counts, and for a budget beyond what
-        // an `Instant` can hold (which then never ends a pass loop early).
+        // The clock reading by which passes must end; `None` for pass counts, and for a budget
+        // beyond what a `Duration` can hold (which then never ends a run early).
         let deadline = match passes.counted_from(start) {
             Passes::Deadline(at) => Some(at),
             _ => None,
         };
         let mut pass = 0u64;
-        let mut last_pass = 0.0f64;
+        let mut last_pass = Duration::ZERO;
         loop {
-            let go = match passes {
-                Passes::Count(n) => pass < n,
-                Passes::Seconds(_) | Passes::Deadline(_) => {
-                    let mean = start.elapsed().as_secs_f64() / pass.max(1) as f64;
-                    let predicted = Duration::from_secs_f64(last_pass.max(mean));
-                    pass == 0
-                        || deadline.is_none_or(|at| Instant::now().checked_add(predicted).is_some_and(|end| end <= at))
-                }
-            };
-            if !go || unit_count == 0 {
+            let go = unit_count > 0
+                && match passes {
+                    Passes::Count(n) => pass < n,
+                    Passes::Seconds(_) | Passes::Deadline(_) => {
+                        let now = clock.now();
+                        let mean = now.saturating_sub(start).div_f64(pass.max(1) as f64);
+                        let predicted = last_pass.max(mean);
+                        pass == 0 || deadline.is_none_or(|at| now.checked_add(predicted).is_some_and(|end| end <= at))
+                    }
+                };
+            if !go {
                 break;
             }
+            let pass_start = clock.now();
+            // Deal the units to slots: unit u to slot u mod threads, in increasing unit order.
+            let mut dealt: Vec<Vec<(usize, &mut U, &mut SplatBuffer)>> =
+                (0..threads).map(|_| Vec::with_capacity(unit_count / threads + 1)).collect();
+            for (u, (unit, buffer)) in units.iter_mut().zip(buffers.iter_mut()).enumerate() {
+                dealt[u % threads].push((u, unit, buffer));
+            }
             let kernel = &kernel;
-            let pass_start = Instant::now();
             self.pool.scope(|scope| {
-                for (slot, slot_units) in per_slot.iter_mut() {
+                for (slot, items) in slots.iter_mut().zip(dealt) {
                     scope.spawn(move |_| {
-                        for (u, unit) in slot_units.iter_mut() {
-                            let item = WorkItem { pass, unit: *u, stream: pass * unit_count as u64 + *u as u64, seed };
+                        for (u, unit, buffer) in items {
+                            let item = WorkItem { pass, unit: u, stream: pass * unit_count as u64 + u as u64, seed };
+                            std::mem::swap(&mut slot.film, buffer);
                             let done = kernel(&item, unit, slot);
+                            std::mem::swap(&mut slot.film, buffer);
                             progress.advance(done);
                         }
                     });
                 }
             });
-            last_pass = pass_start.elapsed().as_secs_f64();
+            // The merge in unit order that makes the film independent of the dealing.
+            for buffer in buffers.iter_mut() {
+                film.apply(buffer);
+                buffer.clear();
+            }
+            let now = clock.now();
+            last_pass = now.saturating_sub(pass_start);
             pass += 1;
             if let (Some(every), Some(snapshot)) = (preview_every, snapshot) {
-                if last_preview.elapsed().as_secs_f64() >= every {
-                    let slots: Vec<&Slot<S>> = per_slot.iter().map(|(slot, _)| slot).collect();
-                    progress.preview(&snapshot(&slots, pass));
-                    last_preview = Instant::now();
+                if now.saturating_sub(last_preview) >= every {
+                    let boundary = PassBoundary {
+                        passes_done: pass,
+                        film: &film,
+                        units: &units,
+                        slots: &slots,
+                        elapsed: now.saturating_sub(start),
+                        last_pass,
+                    };
+                    progress.preview(&snapshot(&boundary));
+                    last_preview = now;
                 }
             }
         }
 
-        let mut film = Accumulator::new(self.width, self.height);
         let mut counters = Counters::default();
         let mut slot_states = Vec::with_capacity(threads);
-        let mut indexed_units = Vec::with_capacity(unit_count);
-        for (slot, slot_units) in per_slot {
-            film.merge(&slot.film);
+        for slot in slots {
             counters.merge(&slot.counters);
             slot_states.push(slot.state);
-            indexed_units.extend(slot_units);
         }
-        indexed_units.sort_by_key(|(u, _)| *u);
-        RunOutput {
-            film,
-            counters,
-            units: indexed_units.into_iter().map(|(_, unit)| unit).collect(),
-            slot_states,
-            passes: pass,
-            elapsed: start.elapsed(),
-        }
+        RunOutput { film, counters, units, slot_states, passes: pass, elapsed: clock.now().saturating_sub(start) }
     }
 }
-
-/// The image of integrators whose result is the slots' summed film times `scale` (the path
-/// tracer, BDPT, light tracing: `scale` = 1 / samples per pixel so far), for previews.
-pub fn scaled_film_image<S>(slots: &[&Slot<S>], scale: f64) -> Image {
-    let Some(first) = slots.first() else { return Image::new(0, 0) };
-    let mut film = Accumulator::new(first.film.width, first.film.height);
-    for slot in slots {
-        film.merge(&slot.film);
-    }
-    film.to_image(scale)
-}
-
-/// Builds a preview image from the slots and the number of passes done (see `Driver::run`).
-pub type Snapshot<'a, S> = dyn Fn(&[&Slot<S>], u64) -> Image + 'a;
 
 /// A rectangle of pixels `[x0, x1) × [y0, y1)`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -352,18 +437,142 @@ impl ImagePlan {
         }
     }
 
-    /// The preview of an integrator whose image is its slots' summed film over the samples per
-    /// pixel so far (the path tracer, BDPT, light tracing): a `Snapshot` for `run`.
-    pub fn preview_image<S>(&self, slots: &[&Slot<S>], passes: u64) -> Image {
-        scaled_film_image(slots, 1.0 / self.spp_after(passes).max(1) as f64)
+    /// The normalisation of a film after `passes` passes: 1 / samples per pixel (0 before any).
+    pub fn scale_after(&self, passes: u64) -> f64 {
+        match self.spp_after(passes) {
+            0 => 0.0,
+            spp => 1.0 / spp as f64,
+        }
+    }
+}
+
+/// What every image-space integrator (pt, BDPT, light tracing) does around its per-sample kernel:
+/// the schedule, the progress total, the driver, previews, the normalisation and the output with
+/// its common statistics. The clock starts when it is created, so the integrator's setup between
+/// `new` and `run` is inside a time budget and the reported wall time.
+pub struct ImageRender<'a> {
+    driver: Driver,
+    plan: ImagePlan,
+    progress: &'a dyn Progress,
+    /// The clock's reading when the render began.
+    started: Duration,
+}
+
+/// What [`ImageRender::run`] produced.
+pub struct ImageRun {
+    /// The image (film × `scale`), counters, wall time, and the statistics `spp`, `passes`,
+    /// `spp_per_pass`, `tiles`, `threads`; no layers.
+    pub output: RenderOutput,
+    /// The film: unnormalised sums, every unit applied in unit order.
+    pub film: Accumulator,
+    /// The normalisation applied to the film: 1 / samples per pixel (0 if no pass ran), for any
+    /// further films an integrator keeps (BDPT's technique layers).
+    pub scale: f64,
+}
+
+impl<'a> ImageRender<'a> {
+    /// A render of the job on a `width`×`height` film, on the wall clock.
+    pub fn new(job: &RenderJob, width: u32, height: u32, progress: &'a dyn Progress) -> Result<Self, RenderError> {
+        ImageRender::with_clock(job, width, height, progress, Arc::new(WallClock::new()))
+    }
+
+    /// The same on the given clock.
+    pub fn with_clock(
+        job: &RenderJob,
+        width: u32,
+        height: u32,
+        progress: &'a dyn Progress,
+        clock: Arc<dyn Clock>,
+    ) -> Result<Self, RenderError> {
+        let started = clock.now();
+        let plan = ImagePlan::new(width, height, job.budget);
+        if let Some(spp) = plan.total_spp {
+            progress.set_total(spp * width as u64 * height as u64);
+        }
+        let driver = Driver::with_clock(job, width, height, clock)?;
+        Ok(ImageRender { driver, plan, progress, started })
+    }
+
+    pub fn plan(&self) -> &ImagePlan {
+        &self.plan
+    }
+
+    /// Renders: for every pass and tile, `sample(x, y, rng, slot)` once per sample of each of the
+    /// tile's pixels (pixels in row-major order, a pixel's samples in a row), all drawing from the
+    /// item's stream `rng` and adding to `slot.film` — at (x, y), or anywhere (light tracing uses
+    /// (x, y) only to count its paths). `init_slot` creates the per-slot state, which is returned
+    /// in slot order.
+    pub fn run<S, K>(&self, init_slot: impl Fn(usize) -> S, sample: K) -> (ImageRun, Vec<S>)
+    where
+        S: Send + Sync,
+        K: Fn(u32, u32, &mut Rng, &mut Slot<S>) + Sync,
+    {
+        let plan = &self.plan;
+        let preview = |at: &PassBoundary<'_, Tile, S>| at.film.to_image(plan.scale_after(at.passes_done));
+        let out = self.driver.run(
+            plan.tiles.clone(),
+            plan.passes.counted_from(self.started),
+            self.progress,
+            init_slot,
+            |item, tile, slot| {
+                let spp = plan.spp_in_pass(item.pass);
+                let mut rng = item.rng();
+                for (x, y) in tile.pixels() {
+                    for _ in 0..spp {
+                        sample(x, y, &mut rng, slot);
+                    }
+                }
+                let samples = spp * tile.pixel_count();
+                slot.counters.samples += samples;
+                samples
+            },
+            Some(&preview),
+        );
+        let scale = plan.scale_after(out.passes);
+        let output = RenderOutput {
+            image: out.film.to_image(scale),
+            layers: Vec::new(),
+            counters: out.counters,
+            wall_time: self.driver.clock().now().saturating_sub(self.started),
+            extra_stats: serde_json::json!({
+                "spp": plan.spp_after(out.passes),
+                "passes": out.passes,
+                "spp_per_pass": plan.spp_per_pass,
+                "tiles": plan.tiles.len(),
+                "threads": self.driver.threads(),
+            }),
+        };
+        (ImageRun { output, film: out.film, scale }, out.slot_states)
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    use std::sync::Mutex;
+
     use super::*;
     use crate::integrator::NoProgress;
     use crate::spectrum::Rgb;
+
+    /// A clock that only moves when told: kernels advance it by what their work "costs", so a
+    /// pass's duration is the sum of its items' costs, whatever the threads and the machine's load.
+    #[derive(Default)]
+    struct FakeClock(AtomicU64);
+
+    impl FakeClock {
+        fn advance(&self, by: Duration) {
+            self.0.fetch_add(by.as_nanos() as u64, Ordering::SeqCst);
+        }
+    }
+
+    impl Clock for FakeClock {
+        fn now(&self) -> Duration {
+            Duration::from_nanos(self.0.load(Ordering::SeqCst))
+        }
+    }
+
+    const MS: Duration = Duration::from_millis(1);
 
     fn job(threads: usize, seed: u64) -> RenderJob {
         RenderJob { budget: Budget::SamplesPerPixel(1), seed, threads }
@@ -382,7 +591,10 @@ mod tests {
                 for _ in 0..50 {
                     let x = (rng.uniform() * 7.0) as usize;
                     let y = (rng.uniform() * 5.0) as usize;
-                    slot.film.add(x, y, Rgb::splat(rng.uniform()));
+                    // Values over 2^±30: wider than f64 can sum exactly, so the order of the
+                    // additions shows in the film's bits.
+                    let value = rng.uniform() * 2f32.powi((rng.uniform() * 60.0) as i32 - 30);
+                    slot.film.add(x, y, Rgb::splat(value));
                 }
                 *visits += 1;
                 slot.counters.samples += 50;
@@ -394,100 +606,169 @@ mod tests {
         (out.film, out.counters, out.passes)
     }
 
+    fn film_bits(film: &Accumulator) -> Vec<[u64; 3]> {
+        film.sums().iter().map(|s| s.map(f64::to_bits)).collect()
+    }
+
+    /// Same seed: a bit-identical film for 1, 2 and 3 threads (units applied in unit order);
+    /// other seed: another film. With a film per slot merged in slot order (the old driver), the
+    /// film sums of 1 and 3 threads differed at 18 of the 35 pixels.
     #[test]
-    fn splatting_run_is_bit_identical_for_same_seed_and_threads() {
+    fn splatting_run_depends_on_seed_only_not_on_threads() {
         let (a, ca, pa) = splat_run(3, 11);
-        let (b, _, _) = splat_run(3, 11);
-        let (c, _, _) = splat_run(3, 12);
         assert_eq!(pa, 3);
         assert_eq!(ca.samples, 13 * 3 * 50);
-        let (ia, ib, ic) = (a.to_image(1.0), b.to_image(1.0), c.to_image(1.0));
-        assert!(ia
-            .pixels
-            .iter()
-            .zip(&ib.pixels)
-            .all(|(p, q)| p.to_array().map(f32::to_bits) == q.to_array().map(f32::to_bits)));
-        assert_ne!(ia, ic);
+        for threads in [1, 2, 3] {
+            let (b, cb, _) = splat_run(threads, 11);
+            assert_eq!(film_bits(&a), film_bits(&b), "{threads} threads");
+            assert_eq!(cb.samples, ca.samples);
+        }
+        let (c, _, _) = splat_run(3, 12);
+        assert_ne!(film_bits(&a), film_bits(&c));
     }
 
-    #[test]
-    fn time_budget_runs_at_least_one_pass_and_stops() {
-        let driver = Driver::new(&job(2, 1), 4, 4).expect("pool");
-        let t = Instant::now();
-        let out = driver.run(
-            vec![(); 4],
-            Passes::Seconds(0.05),
-            &NoProgress,
-            |_| (),
-            |_, _, _| {
-                std::thread::sleep(Duration::from_millis(2));
-                1
-            },
-            None,
-        );
-        assert!(out.passes >= 1);
-        assert!(t.elapsed().as_secs_f64() < 1.0);
-    }
-
-    /// A kernel of 4 units × 5 ms on 2 threads: a pass takes about 10 ms.
-    fn sleepy_run(passes: Passes, progress: &dyn Progress) -> RunOutput<(), ()> {
-        let driver = Driver::new(&job(2, 1), 4, 4).expect("pool");
+    /// Runs 4 units on 2 threads; the unit of pass p costs `cost(p)` on the fake clock and adds 1
+    /// to pixel (0, 0). Returns the run and the clock.
+    fn timed_run(
+        passes: Passes,
+        progress: &dyn Progress,
+        clock: Arc<FakeClock>,
+        cost: impl Fn(u64) -> Duration + Sync,
+    ) -> RunOutput<(), ()> {
+        let driver = Driver::with_clock(&job(2, 1), 4, 4, clock.clone()).expect("pool");
         driver.run(
             vec![(); 4],
             passes,
             progress,
             |_| (),
-            |_, _, slot| {
-                std::thread::sleep(Duration::from_millis(5));
+            |item, _, slot| {
+                clock.advance(cost(item.pass));
                 slot.film.add(0, 0, Rgb::ONE);
                 1
             },
-            // Four units per pass each add 1 to pixel (0, 0).
-            Some(&|slots: &[&Slot<()>], passes: u64| scaled_film_image(slots, 1.0 / (4 * passes) as f64)),
+            // Four units per pass each add 1 to pixel (0, 0): the normalised image reads 1.
+            Some(&|at: &PassBoundary<'_, (), ()>| at.film.to_image(1.0 / (4 * at.passes_done) as f64)),
         )
     }
 
-    /// A deadline ends the run within one pass of it (the prediction is at least the last pass);
-    /// the 50 ms tolerance is a few passes of scheduling noise on a loaded machine. A deadline that
-    /// has already passed (setup took the whole budget) still runs one pass, so there is an image.
+    /// 4 units × 5 ms = 20 ms per pass: a 0.1 s budget holds exactly 5 passes (the fifth is
+    /// predicted to end at 100 ms, which fits; a sixth would end at 120 ms).
     #[test]
-    fn deadline_is_kept_and_one_pass_always_runs() {
-        let start = Instant::now();
-        let out = sleepy_run(Passes::Deadline(start + Duration::from_millis(200)), &NoProgress);
-        let took = start.elapsed().as_secs_f64();
-        assert!(out.passes >= 5, "{} passes", out.passes);
-        assert!(took <= 0.25, "{took:.3} s for a 0.2 s deadline");
-        let out = sleepy_run(Passes::Deadline(Instant::now()), &NoProgress);
-        assert_eq!(out.passes, 1);
-        let Passes::Deadline(at) = Passes::Seconds(1.0).counted_from(start) else { panic!("a deadline") };
-        assert_eq!(at, start + Duration::from_secs(1));
-        assert_eq!(Passes::Count(3).counted_from(start), Passes::Count(3));
+    fn time_budget_runs_exactly_the_passes_that_fit() {
+        let clock = Arc::new(FakeClock::default());
+        let out = timed_run(Passes::Seconds(0.1), &NoProgress, clock.clone(), |_| 5 * MS);
+        assert_eq!(out.passes, 5);
+        assert_eq!(out.elapsed, 100 * MS);
+        assert_eq!(clock.now(), 100 * MS);
+        // A deadline on the clock, with 30 ms gone before the run (setup): 3 passes fit in 70 ms.
+        let clock = Arc::new(FakeClock::default());
+        clock.advance(30 * MS);
+        let out = timed_run(Passes::Deadline(100 * MS), &NoProgress, clock.clone(), |_| 5 * MS);
+        assert_eq!((out.passes, clock.now()), (3, 90 * MS));
+        // `counted_from` turns a budget into a deadline from the render's start.
+        assert_eq!(Passes::Seconds(0.1).counted_from(30 * MS), Passes::Deadline(130 * MS));
+        assert_eq!(Passes::Count(3).counted_from(30 * MS), Passes::Count(3));
+        assert_eq!(Passes::Seconds(1e300).counted_from(MS), Passes::Seconds(1e300));
     }
 
-    /// Previews arrive between passes, at most once per interval, and show the normalised image
-    /// so far (pixel (0, 0) gets 1 per item, so the preview reads 1).
+    /// A pass starts only if predicted to fit, the prediction being the longer of the last pass
+    /// and the mean pass. Budget 0.1 s:
+    /// - passes of 10, 10, 10, 50 ms end at 80 ms; the next is predicted at 50 ms (the last) and
+    ///   does not start, where a mean-only rule (20 ms) would start a fifth (which, were it as slow
+    ///   as the fourth, would end at 130 ms);
+    /// - two passes of 30 ms, then passes of 1 ms: the 40th ends at 98 ms, when the mean (2.45 ms)
+    ///   predicts an end at 100.45 ms, so no 41st starts; a last-only rule would run 42 passes.
+    #[test]
+    fn a_pass_starts_only_if_predicted_to_fit() {
+        let slow_fourth = |p: u64| if p == 3 { 50 * MS / 4 } else { 10 * MS / 4 };
+        let clock = Arc::new(FakeClock::default());
+        let out = timed_run(Passes::Seconds(0.1), &NoProgress, clock.clone(), slow_fourth);
+        assert_eq!((out.passes, clock.now()), (4, 80 * MS));
+        let slow_start = |p: u64| if p < 2 { 30 * MS / 4 } else { MS / 4 };
+        let clock = Arc::new(FakeClock::default());
+        let out = timed_run(Passes::Seconds(0.1), &NoProgress, clock.clone(), slow_start);
+        assert_eq!((out.passes, clock.now()), (40, 98 * MS));
+    }
+
+    /// At least one pass always runs, so there is an image: a zero budget, and a deadline that
+    /// setup has already passed.
+    #[test]
+    fn at_least_one_pass_runs() {
+        let out = timed_run(Passes::Seconds(0.0), &NoProgress, Arc::new(FakeClock::default()), |_| MS);
+        assert_eq!(out.passes, 1);
+        let clock = Arc::new(FakeClock::default());
+        clock.advance(200 * MS);
+        let out = timed_run(Passes::Deadline(100 * MS), &NoProgress, clock, |_| MS);
+        assert_eq!(out.passes, 1);
+    }
+
+    /// Records the preview images' pixel (0, 0) and the clock when each arrived.
+    struct Recorder {
+        every: f64,
+        clock: Arc<FakeClock>,
+        previews: Mutex<Vec<(Duration, f32)>>,
+    }
+
+    impl Progress for Recorder {
+        fn set_total(&self, _: u64) {}
+        fn advance(&self, _: u64) {}
+        fn message(&self, _: &str) {}
+        fn preview_interval(&self) -> Option<f64> {
+            Some(self.every)
+        }
+        fn preview(&self, image: &Image) {
+            self.previews.lock().expect("lock").push((self.clock.now(), image.pixels[0].x));
+        }
+    }
+
+    /// Previews arrive at pass boundaries once at least the interval has passed since the last
+    /// (or the start), and show the normalised image so far. 20 ms passes, 50 ms interval, 30
+    /// passes: a preview after every third pass (60, 120, ..., 600 ms), each reading exactly 1.
     #[test]
     fn previews_are_rate_limited_and_normalised() {
-        use std::sync::Mutex;
-        struct Recorder(Mutex<Vec<(Instant, f32)>>);
-        impl Progress for Recorder {
-            fn set_total(&self, _: u64) {}
-            fn advance(&self, _: u64) {}
-            fn message(&self, _: &str) {}
-            fn preview_interval(&self) -> Option<f64> {
-                Some(0.05)
-            }
-            fn preview(&self, image: &Image) {
-                self.0.lock().expect("lock").push((Instant::now(), image.pixels[0].x));
-            }
-        }
-        let recorder = Recorder(Mutex::new(Vec::new()));
-        let out = sleepy_run(Passes::Count(30), &recorder);
-        let previews = recorder.0.into_inner().expect("lock");
-        // 30 passes of ≥ 10 ms are ≥ 0.3 s: at least 4 intervals of 50 ms, at most one per pass.
-        assert!(previews.len() >= 4 && (previews.len() as u64) < out.passes, "{} previews", previews.len());
-        assert!(previews.iter().all(|&(_, v)| (v - 1.0).abs() < 1e-6), "{previews:?}");
-        assert!(previews.windows(2).all(|w| (w[1].0 - w[0].0).as_secs_f64() >= 0.05));
+        let clock = Arc::new(FakeClock::default());
+        let recorder = Recorder { every: 0.05, clock: clock.clone(), previews: Mutex::new(Vec::new()) };
+        let out = timed_run(Passes::Count(30), &recorder, clock, |_| 5 * MS);
+        assert_eq!(out.passes, 30);
+        let previews = recorder.previews.into_inner().expect("lock");
+        let expected: Vec<(Duration, f32)> = (1..=10).map(|k| (60 * k * MS, 1.0)).collect();
+        assert_eq!(previews, expected);
+    }
+
+    /// The image-space render on the fake clock: setup between `new` and `run` counts in the time
+    /// budget; the image and previews are the film over the samples per pixel. 16×16 pixels (one
+    /// tile), 0.1 ms per sample: 25.6 ms per pass. With 40 ms of setup in a 0.1 s budget, two
+    /// passes fit (ending at 91.2 ms); counted from the run's start instead, three would.
+    #[test]
+    fn image_render_counts_setup_in_the_budget_and_normalises() {
+        let clock = Arc::new(FakeClock::default());
+        let recorder = Recorder { every: 1e-9, clock: clock.clone(), previews: Mutex::new(Vec::new()) };
+        let job = RenderJob { budget: Budget::Seconds(0.1), seed: 5, threads: 2 };
+        let render = ImageRender::with_clock(&job, 16, 16, &recorder, clock.clone()).expect("render");
+        clock.advance(40 * MS);
+        let (run, _) = render.run(
+            |_| (),
+            |x, y, _, slot| {
+                clock.advance(Duration::from_micros(100));
+                slot.film.add(x as usize, y as usize, Rgb::splat(0.5));
+            },
+        );
+        assert_eq!(run.output.extra_stats["passes"], 2);
+        assert_eq!(run.output.extra_stats["spp"], 2);
+        assert_eq!(run.scale, 0.5);
+        assert_eq!(run.output.wall_time, Duration::from_micros(91_200));
+        assert_eq!(run.output.counters.samples, 2 * 256);
+        assert!(run.output.image.pixels.iter().all(|p| *p == Rgb::splat(0.5)));
+        let previews = recorder.previews.into_inner().expect("lock");
+        let times: Vec<Duration> = previews.iter().map(|p| p.0).collect();
+        assert_eq!(times, [Duration::from_micros(65_600), Duration::from_micros(91_200)]);
+        assert!(previews.iter().all(|p| p.1 == 0.5), "{previews:?}");
+    }
+
+    #[test]
+    fn a_film_beyond_u32_pixel_indices_is_an_error() {
+        let err = Driver::new(&job(1, 1), 70_000, 70_000).err().expect("too large");
+        assert!(err.to_string().contains("70000×70000"), "{err}");
     }
 
     #[test]
@@ -498,6 +779,8 @@ mod tests {
         let Passes::Count(n) = plan.passes else { panic!("sample budget gives a pass count") };
         assert_eq!((0..n).map(|p| plan.spp_in_pass(p)).sum::<u64>(), 1000);
         assert_eq!(plan.spp_after(n), 1000);
+        assert_eq!(plan.scale_after(n), 1e-3);
+        assert_eq!(plan.scale_after(0), 0.0);
         let small = ImagePlan::new(1920, 1080, Budget::SamplesPerPixel(4));
         assert_eq!(small.spp_per_pass, 1);
     }

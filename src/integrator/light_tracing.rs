@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use super::bdpt::connect::connect_to_camera;
 use super::bdpt::{generate_light_subpath, BdptContext, MisHeuristic, Vertex};
-use super::driver::{Driver, ImagePlan, Slot};
+use super::driver::{ImageRender, ImageRun};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
@@ -66,61 +66,43 @@ impl Integrator for LightTracer {
     }
 
     fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
-        // The budget and the reported time include the setup before the driver runs.
-        let started = std::time::Instant::now();
-        let (width, height) = (scene.camera.width, scene.camera.height);
-        let plan = ImagePlan::new(width, height, job.budget);
-        if let Some(spp) = plan.total_spp {
-            progress.set_total(spp * width as u64 * height as u64);
-        }
-        let driver = Driver::new(job, width, height)?;
+        self.render_run(scene, job, progress).map(|run| run.output)
+    }
+}
+
+impl LightTracer {
+    /// The render with its unnormalised film (`Integrator::render` keeps only the output). Each
+    /// "sample" of pixel (x, y) is one light path, splatted wherever its connections land.
+    pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<ImageRun, RenderError> {
+        let render = ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?;
         let ctx = BdptContext::new(scene, self.settings.rr_depth as usize, MisHeuristic::None);
         let max_vertices = self.settings.max_depth as usize + 1;
-        let preview = |slots: &[&Slot<Vec<Vertex>>], passes: u64| plan.preview_image(slots, passes);
-        let out = driver.run(
-            plan.tiles.clone(),
-            plan.passes.counted_from(started),
-            progress,
+        let (mut run, _) = render.run(
             |_| Vec::<Vertex>::new(),
-            |item, tile, slot| {
-                let paths = plan.spp_in_pass(item.pass) * tile.pixel_count();
-                let mut rng = item.rng();
-                for _ in 0..paths {
-                    if !generate_light_subpath(&ctx, &mut rng, max_vertices, &mut slot.state, &mut slot.counters) {
+            |_, _, rng, slot| {
+                if !generate_light_subpath(&ctx, rng, max_vertices, &mut slot.state, &mut slot.counters) {
+                    return;
+                }
+                for qs in slot.state.iter() {
+                    if !qs.connectible(scene) || qs.infinite {
                         continue;
                     }
-                    for qs in slot.state.iter() {
-                        if !qs.connectible(scene) || qs.infinite {
-                            continue;
-                        }
-                        let Some((value, _, raster)) = connect_to_camera(&ctx, qs, &mut slot.counters) else {
-                            continue;
-                        };
-                        if !is_finite(value) {
-                            slot.counters.nonfinite_dropped += 1;
-                            continue;
-                        }
-                        slot.film.splat(raster, value);
+                    let Some((value, _, raster)) = connect_to_camera(&ctx, qs, &mut slot.counters) else {
+                        continue;
+                    };
+                    if !is_finite(value) {
+                        slot.counters.nonfinite_dropped += 1;
+                        continue;
                     }
+                    slot.film.splat(raster, value);
                 }
-                slot.counters.samples += paths;
-                paths
             },
-            Some(&preview),
         );
-        let spp = plan.spp_after(out.passes);
-        let image = out.film.to_image(if spp > 0 { 1.0 / spp as f64 } else { 0.0 });
-        Ok(RenderOutput {
-            image,
-            layers: Vec::new(),
-            counters: out.counters,
-            wall_time: started.elapsed(),
-            extra_stats: serde_json::json!({
-                "light_paths_per_pixel": spp,
-                "passes": out.passes,
-                "threads": driver.threads(),
-            }),
-        })
+        if let Some(stats) = run.output.extra_stats.as_object_mut() {
+            let spp = stats.get("spp").cloned().unwrap_or_default();
+            stats.insert("light_paths_per_pixel".into(), spp);
+        }
+        Ok(run)
     }
 }
 

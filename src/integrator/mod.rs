@@ -33,7 +33,9 @@ pub enum Budget {
 pub struct RenderJob {
     pub budget: Budget,
     pub seed: u64,
-    /// Number of worker threads (the result is bit-identical for the same seed and thread count).
+    /// Number of worker threads. The same seed and thread count give a bit-identical result; for
+    /// pt, BDPT and light tracing the film (and so the image) is the same for any thread count
+    /// (`driver`'s render model), MLT's not yet (its films are still per-thread state).
     pub threads: usize,
 }
 
@@ -82,6 +84,8 @@ pub enum RenderError {
     Settings(String),
     #[error("could not create the thread pool: {0}")]
     ThreadPool(String),
+    #[error("a {width}×{height} film has more than 2^32 pixels, more than a render can address")]
+    FilmTooLarge { width: u32, height: u32 },
     #[error("unknown integrator '{0}': expected one of {names}", names = INTEGRATOR_NAMES.join(", "))]
     UnknownIntegrator(String),
 }

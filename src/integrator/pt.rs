@@ -16,7 +16,7 @@
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
-use super::driver::{Driver, ImagePlan, Slot};
+use super::driver::{ImageRender, ImageRun};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::geometry::Ray;
 use crate::material::TransportMode;
@@ -294,52 +294,24 @@ impl Integrator for PathTracer {
     }
 
     fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
-        // The budget and the reported time include the setup before the driver runs.
-        let started = std::time::Instant::now();
-        let (width, height) = (scene.camera.width, scene.camera.height);
-        let plan = ImagePlan::new(width, height, job.budget);
-        if let Some(spp) = plan.total_spp {
-            progress.set_total(spp * width as u64 * height as u64);
-        }
-        let driver = Driver::new(job, width, height)?;
-        let preview = |slots: &[&Slot<()>], passes: u64| plan.preview_image(slots, passes);
-        let out = driver.run(
-            plan.tiles.clone(),
-            plan.passes.counted_from(started),
-            progress,
+        self.render_run(scene, job, progress).map(|run| run.output)
+    }
+}
+
+impl PathTracer {
+    /// The render with its unnormalised film (`Integrator::render` keeps only the output).
+    pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<ImageRun, RenderError> {
+        let render = ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?;
+        let (run, _) = render.run(
             |_| (),
-            |item, tile, slot| {
-                let spp = plan.spp_in_pass(item.pass);
-                let mut rng = item.rng();
-                for (x, y) in tile.pixels() {
-                    for _ in 0..spp {
-                        let raster = Vec2::new(x as f32 + rng.uniform(), y as f32 + rng.uniform());
-                        let ray = scene.camera.ray_through(raster);
-                        let l = self.li(scene, ray, &mut rng, &mut slot.counters);
-                        slot.film.add(x as usize, y as usize, l);
-                    }
-                }
-                let samples = spp * tile.pixel_count();
-                slot.counters.samples += samples;
-                samples
+            |x, y, rng, slot| {
+                let raster = Vec2::new(x as f32 + rng.uniform(), y as f32 + rng.uniform());
+                let ray = scene.camera.ray_through(raster);
+                let l = self.li(scene, ray, rng, &mut slot.counters);
+                slot.film.add(x as usize, y as usize, l);
             },
-            Some(&preview),
         );
-        let spp = plan.spp_after(out.passes);
-        let image = out.film.to_image(if spp > 0 { 1.0 / spp as f64 } else { 0.0 });
-        Ok(RenderOutput {
-            image,
-            layers: Vec::new(),
-            counters: out.counters,
-            wall_time: started.elapsed(),
-            extra_stats: serde_json::json!({
-                "spp": spp,
-                "passes": out.passes,
-                "spp_per_pass": plan.spp_per_pass,
-                "tiles": plan.tiles.len(),
-                "threads": driver.threads(),
-            }),
-        })
+        Ok(run)
     }
 }
 

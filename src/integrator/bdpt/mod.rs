@@ -33,9 +33,9 @@ pub use subpath::{
 };
 pub use vertex::{Vertex, VertexKind};
 
-use super::driver::{Driver, ImagePlan, Slot};
+use super::driver::{ImageRender, ImageRun};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
-use crate::film::{Accumulator, Image};
+use crate::film::{Accumulator, SplatBuffer};
 use crate::sampling::Rng;
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
@@ -169,7 +169,7 @@ impl Bdpt {
         ctx: &BdptContext,
         pixel: UVec2,
         rng: &mut Rng,
-        film: &mut Accumulator,
+        film: &mut SplatBuffer,
         counters: &mut Counters,
         slot: &mut BdptSlot,
     ) {
@@ -255,21 +255,20 @@ impl Integrator for Bdpt {
     }
 
     fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
-        // The budget and the reported time include the setup before the driver runs.
-        let started = std::time::Instant::now();
+        self.render_run(scene, job, progress).map(|run| run.output)
+    }
+}
+
+impl Bdpt {
+    /// The render with its unnormalised film (`Integrator::render` keeps only the output), and the
+    /// technique layers when `technique_images` is set. (Those layers are per-slot films merged in
+    /// slot order, so unlike the image their low bits depend on the thread count.)
+    pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<ImageRun, RenderError> {
         let (width, height) = (scene.camera.width, scene.camera.height);
-        let plan = ImagePlan::new(width, height, job.budget);
-        if let Some(spp) = plan.total_spp {
-            progress.set_total(spp * width as u64 * height as u64);
-        }
-        let driver = Driver::new(job, width, height)?;
+        let render = ImageRender::new(job, width, height, progress)?;
         let ctx = self.context(scene);
         let technique_depth = (self.settings.technique_max_depth.min(self.settings.max_depth)) as usize;
-        let preview = |slots: &[&Slot<BdptSlot>], passes: u64| plan.preview_image(slots, passes);
-        let out = driver.run(
-            plan.tiles.clone(),
-            plan.passes.counted_from(started),
-            progress,
+        let (mut run, slot_states) = render.run(
             |_| BdptSlot {
                 camera: Vec::new(),
                 light: Vec::new(),
@@ -279,36 +278,15 @@ impl Integrator for Bdpt {
                     .technique_images
                     .then(|| TechniqueFilms::new(width as usize, height as usize, technique_depth)),
             },
-            |item, tile, slot| {
-                let spp = plan.spp_in_pass(item.pass);
-                let mut rng = item.rng();
-                for (x, y) in tile.pixels() {
-                    for _ in 0..spp {
-                        self.sample_pixel(
-                            &ctx,
-                            UVec2::new(x, y),
-                            &mut rng,
-                            &mut slot.film,
-                            &mut slot.counters,
-                            &mut slot.state,
-                        );
-                    }
-                }
-                let samples = spp * tile.pixel_count();
-                slot.counters.samples += samples;
-                samples
+            |x, y, rng, slot| {
+                self.sample_pixel(&ctx, UVec2::new(x, y), rng, &mut slot.film, &mut slot.counters, &mut slot.state)
             },
-            Some(&preview),
         );
-        let spp = plan.spp_after(out.passes);
-        let scale = if spp > 0 { 1.0 / spp as f64 } else { 0.0 };
-        let image = out.film.to_image(scale);
-        let mut layers: Vec<(String, Image)> = Vec::new();
         let mut technique_names = Vec::new();
         if self.settings.technique_images {
-            // Merge the slots' technique films in slot order (deterministic, like the main film).
+            // Merge the slots' technique films in slot order.
             let mut merged: Option<TechniqueFilms> = None;
-            for state in out.slot_states {
+            for state in slot_states {
                 let Some(tf) = state.techniques else { continue };
                 match merged.as_mut() {
                     None => merged = Some(tf),
@@ -324,25 +302,16 @@ impl Integrator for Bdpt {
             }
             if let Some(m) = merged {
                 for (i, name) in m.names.iter().enumerate() {
-                    layers.push((format!("{name}.weighted"), m.weighted[i].to_image(scale)));
-                    layers.push((format!("{name}.unweighted"), m.unweighted[i].to_image(scale)));
+                    run.output.layers.push((format!("{name}.weighted"), m.weighted[i].to_image(run.scale)));
+                    run.output.layers.push((format!("{name}.unweighted"), m.unweighted[i].to_image(run.scale)));
                     technique_names.push(name.clone());
                 }
             }
         }
-        Ok(RenderOutput {
-            image,
-            layers,
-            counters: out.counters,
-            wall_time: started.elapsed(),
-            extra_stats: serde_json::json!({
-                "spp": spp,
-                "passes": out.passes,
-                "spp_per_pass": plan.spp_per_pass,
-                "threads": driver.threads(),
-                "technique_layers": technique_names,
-            }),
-        })
+        if let Some(stats) = run.output.extra_stats.as_object_mut() {
+            stats.insert("technique_layers".into(), serde_json::json!(technique_names));
+        }
+        Ok(run)
     }
 }
 

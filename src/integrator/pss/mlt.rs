@@ -49,7 +49,7 @@ use crate::integrator::bdpt::{
     connect_all, evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch,
     FilmRegion, Vertex,
 };
-use crate::integrator::driver::{Driver, Passes, Slot};
+use crate::integrator::driver::{Driver, PassBoundary, Passes};
 use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::{Distribution1D, Rng};
 use crate::scene::Scene;
@@ -724,8 +724,8 @@ impl Integrator for Mlt {
         };
         progress.message("mutating");
         let bootstrap = Bootstrap { sums: &boot_sums, paths: n_boot };
-        let preview = |slots: &[&Slot<SlotState>], _passes: u64| {
-            let states: Vec<&SlotState> = slots.iter().map(|slot| &slot.state).collect();
+        let preview = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
+            let states: Vec<&SlotState> = at.slots.iter().map(|slot| &slot.state).collect();
             self.normalised_image(&states, &bootstrap, width, height).0
         };
         let out = driver.run(
