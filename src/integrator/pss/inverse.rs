@@ -636,8 +636,10 @@ mod tests {
     /// can propose (w_j > 0) and regenerated from the numbers; the regenerated path must be the
     /// original within `SAME_PATH_TOLERANCE` with the same MIS weights (1e-3). The round trip
     /// loses a few f32 ulps per vertex, amplified along the walk and by glossy lobes, so the bound
-    /// is on shares: at most 1% of the inversions may fail or regenerate another path (3% for the
-    /// environment, below), at most 0.1% may move a weight by more than 1e-3.
+    /// is on shares: at most 1% of the inversions may fail or regenerate another path (4% for the
+    /// environment, below: 2.8% measured on jumps to another technique; the 2.0% measured before
+    /// counted the current technique's own inverse too, which rarely fails), at most 0.1% may
+    /// move a weight by more than 1e-3.
     ///
     /// Reverse inversions. A jump (ū, i) → (v̂, j) with x̄ = S_i(ū) = S_j(v̂) is proposed with
     /// T(i→j) = w_j(x̄) (Eq. 33) and exists only if S_j⁻¹(x̄) succeeds (regenerates x̄); its
@@ -719,7 +721,7 @@ mod tests {
                 unmatched_share <= 1e-3,
                 "{name}: jumps whose reverse cannot be inverted carry {unmatched_share:.2e} of the jump flow"
             );
-            let failure_bound = if name == "environment" { 0.03 } else { 0.01 };
+            let failure_bound = if name == "environment" { 0.04 } else { 0.01 };
             assert!(share(failed) <= failure_bound, "{name}: {failed} of {tried} inversions failed");
             assert!(share(weight_off) <= 1e-3, "{name}: weights moved in {weight_off} of {tried}");
         }
