@@ -49,6 +49,14 @@ pub struct CameraWiSample {
     pub raster: Vec2,
 }
 
+/// What `Camera::invert_ray` found: the film uniforms of a primary ray and |J| of the inverse map
+/// (uniforms per unit solid angle at the pinhole; RJMLT Eq. 39's first step).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayInverse {
+    pub u: [f32; CAMERA_SAMPLE_DIMS],
+    pub jacobian: f32,
+}
+
 // INTERFACE (construction here; sampling methods owned by the sampling work):
 impl Camera {
     /// Builds a camera; `up` need not be orthogonal to the viewing direction.
@@ -162,10 +170,19 @@ impl Camera {
         self.ray_through(self.sample_film(u))
     }
     /// Inverse of `sample_ray` for a primary-ray direction `d` (from the pinhole outwards): the
-    /// uniforms whose ray has direction `d`; `None` when `d` misses the film. Its Jacobian is
-    /// `pdf_we(d).1`, the solid-angle density of the ray.
-    pub fn invert_ray(&self, d: Vec3) -> Option<[f32; CAMERA_SAMPLE_DIMS]> {
-        self.invert_film(self.raster_of(d)?)
+    /// uniforms whose ray has direction `d`, with the Jacobian of the map from directions to them;
+    /// `None` when `d` misses the film.
+    pub fn invert_ray(&self, d: Vec3) -> Option<RayInverse> {
+        let u = self.invert_film(self.raster_of(d)?)?;
+        // |∂u/∂ω| as the chain of the inverse's own steps (it must equal `pdf_we(d).1`, which the
+        // RJMLT Jacobian test checks through BDPT's densities): a direction at angle θ to the axis
+        // meets the film plane at distance 1 where dA = dω / cos³θ; raster_of scales the plane by
+        // (W / (2 tan·aspect)) × (H / (2 tan)) pixels per unit area, invert_film by 1/(W·H).
+        let cos_theta = d.normalize_or_zero().dot(self.forward);
+        let aspect = self.width as f32 / self.height as f32;
+        let plane_to_unit_square = 1.0 / ((2.0 * self.tan_half_fov * aspect) * (2.0 * self.tan_half_fov));
+        let jacobian = plane_to_unit_square / (cos_theta * cos_theta * cos_theta);
+        (jacobian.is_finite() && jacobian > 0.0).then_some(RayInverse { u, jacobian })
     }
     /// Raster position inside pixel `pixel` from 2 uniforms (per-pixel sampling).
     pub fn sample_pixel(&self, pixel: glam::UVec2, u: [f32; CAMERA_SAMPLE_DIMS]) -> Vec2 {
@@ -215,7 +232,7 @@ mod tests {
         let mut rng = Rng::new(2, 1);
         for _ in 0..10_000 {
             let u = [rng.uniform(), rng.uniform()];
-            let v = c.invert_ray(c.sample_ray(u).d).unwrap();
+            let v = c.invert_ray(c.sample_ray(u).d).unwrap().u;
             assert!((u[0] - v[0]).abs() < 1e-4 && (u[1] - v[1]).abs() < 1e-4, "{u:?} -> {v:?}");
             let raster = c.sample_film(u);
             let (px, w) = c.invert_pixel(raster).unwrap();

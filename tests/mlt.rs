@@ -87,20 +87,29 @@ fn rjmlt_agrees_with_pt_on_cornell_glossy() {
     mlt_agrees_with_pt("cornell-glossy", "rjmlt", MMLT_TEST_PARAMS, 1024);
 }
 
-/// RJMLT's technique jumps (Bitterli et al. 2017, Sec. 6.2): with T(i→j) = w_j and the lobe choice
-/// of Eq. 44 the acceptance of Eq. 38/43 is 1 up to the rounding of the inverse round trip, which
-/// loses a few f32 ulps per vertex, amplified by 1/cos at every grazing refraction. So: r within
-/// 1e-3 of 1 for all but 0.5% of the jumps and within 5% for every one (measured: 6 of 7,856 jumps
-/// on the glass scene beyond 1e-3, the worst 0.99% off, all through two refractions at cos 0.03–0.09
-/// in the sphere); an error in a Jacobian, a weight or an inverse is a factor on whole classes of
-/// paths (the MIS-recurrence density ratio was off by up to 2,853× on the glass scene's caustic
-/// paths before it was replaced). Jumps may fail only where rounding moves a regenerated vertex
-/// across a geometric boundary (an edge, a silhouette): measured 3 in 4,859 on the glass scene and
-/// 45 in 26,137 on veach-ajar, so at most 1% is allowed. The scenes cover diffuse, glossy (GGX) and
-/// specular (dielectric, with its reflect/refract mixture) vertices.
+/// RJMLT's technique jumps (Bitterli et al. 2017, Sec. 6.2) in the renderer: jumps to another
+/// technique are proposed at every depth with more than one technique, they regenerate the path
+/// they were inverted from, and they are accepted.
+///
+/// What this does not test, and why: with T(i→j) = w_j and the lobe choice of Eq. 44 the
+/// acceptance of Eq. 38/43 is 1, and mlt.rs computes it from the two walks' unweighted estimates
+/// f/p_i and f/p_j of the same path, in which f and p cancel algebraically; so |r − 1| (the
+/// JSON's `ratio_max_deviation`, `ratio_off_by_more_than_1e-3`) is 1 up to rounding for any
+/// Jacobian, and asserting on it tested nothing. The claim it stood for, that the inverse walk's
+/// Jacobian |J[S_j⁻¹]|/T is p_j(x̄) (Eq. 27–29), is tested against BDPT's densities in
+/// `pss/inverse.rs` (`inverse_jacobians_are_the_bdpt_path_densities`, with the wrong variants it
+/// catches), and the share of the jump flow whose reverse inversion fails in
+/// `inverted_paths_regenerate_the_original`.
+///
+/// Jumps may fail only where rounding moves a regenerated vertex across a geometric boundary (an
+/// edge, a silhouette): measured 3 in 4,859 on the glass scene and 45 in 26,137 on veach-ajar, so
+/// at most 1% is allowed. A failed or mismatched jump is the only way a jump is rejected (r = 1
+/// otherwise), so acceptance ≥ 99% says the same from the chain's side: the counts above are the
+/// jumps the chain really attempted. The scenes cover diffuse, glossy (GGX), specular dielectric
+/// (with its reflect/refract mixture) and mirror vertices inside paths.
 #[test]
 fn rjmlt_jumps_reproduce_paths_and_are_accepted() {
-    for name in ["cornell-glossy", "cornell-glass"] {
+    for name in ["cornell-glossy", "cornell-glass", "cornell-mirror"] {
         let scene = scene(name, 32);
         let params = "bootstrap = 10000\nchains = 256\njump_probability = 0.3\nlarge_step_probability = 0.1";
         let (img, counters, stats) = render(&scene, "rjmlt", params, 256, 1);
@@ -121,10 +130,6 @@ fn rjmlt_jumps_reproduce_paths_and_are_accepted() {
             (failures + mismatches) as f64 <= 0.01 * proposals as f64,
             "{name}: {failures} failed inverses and {mismatches} mismatched paths in {proposals} jumps"
         );
-        let off = jumps["ratio_off_by_more_than_1e-3"].as_u64().expect("ratio count");
-        assert!(off as f64 <= 0.005 * proposals as f64, "{name}: {jumps}");
-        let worst = jumps["ratio_max_deviation"].as_f64().expect("ratio deviation");
-        assert!(worst < 0.05, "{name}: worst |r - 1| = {worst}");
         let acceptance = jumps["acceptance"].as_f64().expect("acceptance");
         assert!(acceptance >= 0.99, "{name}: jump acceptance {acceptance}");
         // Every depth with more than one technique saw jumps.

@@ -17,7 +17,7 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 
-use super::{AreaLight, EmissionSample, LightLiSample};
+use super::{AreaLight, EmissionInverse, EmissionSample, LiInverse, LightLiSample};
 use crate::geometry::{gamma, Frame, TriangleMesh};
 use crate::sampling::{
     clamp_unit, invert_cosine_hemisphere, invert_uniform_triangle, pdf_cosine_hemisphere, sample_cosine_hemisphere,
@@ -229,9 +229,18 @@ impl AreaLight {
     }
 
     /// Inverse of `sample_li`: the uniforms that choose the point `p_light` on triangle `prim`
-    /// (`gamma` resamples the triangle's interval, Eq. 40).
-    pub fn invert_li(&self, prim: u32, p_light: Vec3, gamma: f32) -> Option<[f32; 3]> {
-        invert_mesh_point(&self.mesh, &self.triangles, prim, p_light, gamma)
+    /// (`gamma` resamples the triangle's interval, Eq. 40), per unit area of the point.
+    pub fn invert_li(&self, prim: u32, p_light: Vec3, gamma: f32) -> Option<LiInverse> {
+        let u = invert_mesh_point(&self.mesh, &self.triangles, prim, p_light, gamma)?;
+        Some(LiInverse { u, jacobian: self.mesh_point_inverse_jacobian(prim)? })
+    }
+
+    /// |J| of `invert_mesh_point` on triangle `prim`: the length of its interval of `u[0]`
+    /// (Eq. 40) times the uniform-triangle warp's 1/area. `None` for a zero-area triangle.
+    fn mesh_point_inverse_jacobian(&self, prim: u32) -> Option<f32> {
+        let area = self.mesh.triangle_area(prim);
+        let jacobian = self.triangles.pdf_discrete(prim as usize) / area;
+        (area > 0.0 && jacobian.is_finite() && jacobian > 0.0).then_some(jacobian)
     }
 
     /// An emitted ray: point by area with `u[0..3]`, cosine-weighted direction with `u[3..5]`.
@@ -259,10 +268,18 @@ impl AreaLight {
     }
 
     /// Inverse of `sample_emission` for the ray leaving `p` on triangle `prim` along `dir`.
-    pub fn invert_emission(&self, prim: u32, p: Vec3, dir: Vec3, gamma: f32) -> Option<[f32; 5]> {
+    pub fn invert_emission(&self, prim: u32, p: Vec3, dir: Vec3, gamma: f32) -> Option<EmissionInverse> {
         let [u0, u1, u2] = invert_mesh_point(&self.mesh, &self.triangles, prim, p, gamma)?;
-        let [u3, u4] = invert_emission_direction(triangle_normal(&self.mesh, prim), self.two_sided, dir)?;
-        Some([u0, u1, u2, u3, u4])
+        let n = triangle_normal(&self.mesh, prim);
+        let [u3, u4] = invert_emission_direction(n, self.two_sided, dir)?;
+        // The cosine warp's inverse has Jacobian |cos θ|/π per unit solid angle, halved by the
+        // two-sided split of u[3]: `pdf_emission_direction`.
+        let jacobian_dir = pdf_emission_direction(n, self.two_sided, dir);
+        Some(EmissionInverse {
+            u: [u0, u1, u2, u3, u4],
+            jacobian_pos: self.mesh_point_inverse_jacobian(prim)?,
+            jacobian_dir,
+        })
     }
 }
 
@@ -473,13 +490,16 @@ mod tests {
         assert_eq!(one.emitted(Vec3::Z, -Vec3::Z), Rgb::ZERO);
         assert_eq!(two.emitted(Vec3::Z, -Vec3::Z), Rgb::splat(2.0));
         let inv = one.invert_li(0, s.p, 0.5).unwrap();
-        let again = one.sample_li(above, inv).unwrap();
+        let again = one.sample_li(above, inv.u).unwrap();
+        assert!((inv.jacobian - pdf_mesh_point(one.area)).abs() < 1e-6 * inv.jacobian);
         assert!((again.p - s.p).length() < 1e-5);
         let e = one.sample_emission([0.1, 0.2, 0.3, 0.4, 0.5]).unwrap();
         let (pp, pd) = one.pdf_emission(e.n, e.dir);
         assert!((pp - e.pdf_pos).abs() < 1e-6 && (pd - e.pdf_dir).abs() < 1e-6);
-        let v = one.invert_emission(0, e.p, e.dir, 0.7).unwrap();
-        for (a, b) in v.iter().zip([0.1, 0.2, 0.3, 0.4, 0.5]).skip(1) {
+        let inverse = one.invert_emission(0, e.p, e.dir, 0.7).unwrap();
+        assert!((inverse.jacobian_pos - e.pdf_pos).abs() < 1e-6 * e.pdf_pos);
+        assert!((inverse.jacobian_dir - e.pdf_dir).abs() < 1e-6 * e.pdf_dir);
+        for (a, b) in inverse.u.iter().zip([0.1, 0.2, 0.3, 0.4, 0.5]).skip(1) {
             assert!((a - b).abs() < 1e-4);
         }
     }

@@ -25,7 +25,7 @@ use std::f32::consts::PI;
 
 use glam::{Mat3, Vec2, Vec3};
 
-use super::{ConstantEnvironment, EmissionSample, ImageEnvironment, LightLiSample};
+use super::{ConstantEnvironment, EmissionInverse, EmissionSample, ImageEnvironment, LiInverse, LightLiSample};
 use crate::geometry::{Aabb, Frame};
 use crate::sampling::{
     clamp_unit, invert_uniform_disk_concentric, invert_uniform_sphere, pdf_uniform_sphere,
@@ -133,10 +133,11 @@ impl ConstantEnvironment {
             infinite: true,
         })
     }
-    /// Inverse of `sample_li` for the direction `wi`; `gamma` fills the unused `u[0]`.
-    pub fn invert_li(&self, wi: Vec3, gamma: f32) -> Option<[f32; 3]> {
+    /// Inverse of `sample_li` for the direction `wi`; `gamma` fills the unused `u[0]`. The
+    /// direction warp's Jacobian is its density `pdf_direction`.
+    pub fn invert_li(&self, wi: Vec3, gamma: f32) -> Option<LiInverse> {
         let [a, b] = self.invert_direction(wi)?;
-        Some([clamp_unit(gamma), a, b])
+        Some(LiInverse { u: [clamp_unit(gamma), a, b], jacobian: self.pdf_direction(wi) })
     }
     pub fn sample_emission(&self, u: [f32; 5]) -> Option<EmissionSample> {
         sample_env_emission(u, self.scene_center, self.scene_radius, |v| self.sample_direction(v), |_| self.radiance)
@@ -146,10 +147,14 @@ impl ConstantEnvironment {
         (disk_pdf(self.scene_radius), self.pdf_direction(-dir))
     }
     /// Inverse of `sample_emission` for the ray along `dir` through `p` (any point on it).
-    pub fn invert_emission(&self, p: Vec3, dir: Vec3, gamma: f32) -> Option<[f32; 5]> {
+    pub fn invert_emission(&self, p: Vec3, dir: Vec3, gamma: f32) -> Option<EmissionInverse> {
         let [a, b] = self.invert_direction(-dir)?;
         let [c, d] = invert_disk_point(-dir, self.scene_center, self.scene_radius, p)?;
-        Some([clamp_unit(gamma), a, b, c, d])
+        Some(EmissionInverse {
+            u: [clamp_unit(gamma), a, b, c, d],
+            jacobian_pos: disk_pdf(self.scene_radius),
+            jacobian_dir: self.pdf_direction(-dir),
+        })
     }
 }
 
@@ -258,10 +263,11 @@ impl ImageEnvironment {
             infinite: true,
         })
     }
-    /// Inverse of `sample_li` for the direction `wi`; `gamma` fills the unused `u[0]`.
-    pub fn invert_li(&self, wi: Vec3, gamma: f32) -> Option<[f32; 3]> {
+    /// Inverse of `sample_li` for the direction `wi`; `gamma` fills the unused `u[0]`. The
+    /// direction warp's Jacobian is its density `pdf_direction`.
+    pub fn invert_li(&self, wi: Vec3, gamma: f32) -> Option<LiInverse> {
         let [a, b] = self.invert_direction(wi)?;
-        Some([clamp_unit(gamma), a, b])
+        Some(LiInverse { u: [clamp_unit(gamma), a, b], jacobian: self.pdf_direction(wi) })
     }
     pub fn sample_emission(&self, u: [f32; 5]) -> Option<EmissionSample> {
         sample_env_emission(u, self.scene_center, self.scene_radius, |v| self.sample_direction(v), |w| self.radiance(w))
@@ -271,10 +277,14 @@ impl ImageEnvironment {
         (disk_pdf(self.scene_radius), self.pdf_direction(-dir))
     }
     /// Inverse of `sample_emission` for the ray along `dir` through `p` (any point on it).
-    pub fn invert_emission(&self, p: Vec3, dir: Vec3, gamma: f32) -> Option<[f32; 5]> {
+    pub fn invert_emission(&self, p: Vec3, dir: Vec3, gamma: f32) -> Option<EmissionInverse> {
         let [a, b] = self.invert_direction(-dir)?;
         let [c, d] = invert_disk_point(-dir, self.scene_center, self.scene_radius, p)?;
-        Some([clamp_unit(gamma), a, b, c, d])
+        Some(EmissionInverse {
+            u: [clamp_unit(gamma), a, b, c, d],
+            jacobian_pos: disk_pdf(self.scene_radius),
+            jacobian_dir: self.pdf_direction(-dir),
+        })
     }
 }
 
@@ -444,7 +454,7 @@ mod tests {
         let s = c.sample_li(reference, [0.3, 0.2, 0.7]).unwrap();
         assert!(s.infinite && (s.p - reference).normalize().dot(s.wi) > 0.9999);
         assert!((s.p - c.scene_center).length() > c.scene_radius);
-        let v = c.invert_li(s.wi, 0.9).unwrap();
+        let v = c.invert_li(s.wi, 0.9).unwrap().u;
         assert!((v[1] - 0.2).abs() < 1e-4 && (v[2] - 0.7).abs() < 1e-4 && (v[0] - 0.9).abs() < 1e-6);
     }
 
@@ -486,7 +496,7 @@ mod tests {
                 assert!((pp - s.pdf_pos).abs() <= 1e-5 * pp && (pd - s.pdf_dir).abs() <= 1e-3 * pd);
                 // From a point further along the ray (where it would hit the scene).
                 let along = s.p + s.dir * (0.7 * r);
-                let v = light.invert_emission(0, along, s.dir, 0.25).unwrap();
+                let v = light.invert_emission(0, along, s.dir, 0.25).unwrap().u;
                 assert!((v[0] - 0.25).abs() < 1e-6);
                 // The azimuth is periodic: compare on the torus.
                 let torus = |a: f32, b: f32| (a - b).abs().min(1.0 - (a - b).abs());

@@ -140,6 +140,28 @@ pub struct LightLiSample {
     pub infinite: bool,
 }
 
+/// What `Light::invert_li` found: the uniforms `sample_li` maps to the emitter point (or, for an
+/// environment, the direction) and |J| of that inverse (RJMLT Eq. 39–40): uniforms per unit area
+/// of the emitter point (area lights: the triangle's interval, Eq. 40, times the uniform-triangle
+/// warp's 1/area), per unit solid angle of the direction (environments; the unused `u[0]` adds 1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LiInverse {
+    pub u: [f32; LI_SAMPLE_DIMS],
+    pub jacobian: f32,
+}
+
+/// What `Light::invert_emission` found: the uniforms of the emitted ray and the Jacobians of the
+/// two halves of the inverse. Area lights: `jacobian_pos` per unit area of the point (as for
+/// `LiInverse`), `jacobian_dir` per unit solid angle of the direction. Environments:
+/// `jacobian_dir` per unit solid angle of the direction towards the environment, `jacobian_pos`
+/// per unit area of the origin on the disk perpendicular to it (the unused `u[0]` adds 1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EmissionInverse {
+    pub u: [f32; EMISSION_SAMPLE_DIMS],
+    pub jacobian_pos: f32,
+    pub jacobian_dir: f32,
+}
+
 /// A ray leaving an emitter, as light tracing and BDPT start light subpaths.
 #[derive(Clone, Copy, Debug)]
 pub struct EmissionSample {
@@ -178,7 +200,7 @@ impl Light {
     /// triangle `prim` (area lights) or the direction `wi` (environments; `prim`/`p_light`
     /// ignored). `gamma` is a fresh uniform for the ambiguous `u[0]`. `None` when the sampler cannot
     /// produce that point or direction.
-    pub fn invert_li(&self, wi: Vec3, prim: u32, p_light: Vec3, gamma: f32) -> Option<[f32; LI_SAMPLE_DIMS]> {
+    pub fn invert_li(&self, wi: Vec3, prim: u32, p_light: Vec3, gamma: f32) -> Option<LiInverse> {
         match self {
             Light::Area(l) => l.invert_li(prim, p_light, gamma),
             Light::ConstantEnvironment(l) => l.invert_li(wi, gamma),
@@ -222,7 +244,7 @@ impl Light {
     /// on triangle `prim`; for an environment `p` is any point on the ray (e.g. the first surface it
     /// reaches), projected onto the emission disk, and `prim` is ignored. `gamma` is a fresh uniform
     /// for the ambiguous `u[0]`.
-    pub fn invert_emission(&self, prim: u32, p: Vec3, dir: Vec3, gamma: f32) -> Option<[f32; EMISSION_SAMPLE_DIMS]> {
+    pub fn invert_emission(&self, prim: u32, p: Vec3, dir: Vec3, gamma: f32) -> Option<EmissionInverse> {
         match self {
             Light::Area(l) => l.invert_emission(prim, p, dir, gamma),
             Light::ConstantEnvironment(l) => l.invert_emission(p, dir, gamma),
@@ -277,9 +299,11 @@ impl LightSampler {
         self.distribution.pdf_discrete(index)
     }
     /// Probabilistic inverse of `sample` (RJMLT Eq. 40): a u that selects `index`, uniform in its
-    /// interval as `gamma` is uniform; Jacobian pmf(index). `None` for a light of zero probability.
-    pub fn invert(&self, index: usize, gamma: f32) -> Option<f32> {
-        self.distribution.invert_discrete(index, gamma)
+    /// interval as `gamma` is uniform, and the Jacobian of that inverse, the interval's length
+    /// pmf(index). `None` for a light of zero probability.
+    pub fn invert(&self, index: usize, gamma: f32) -> Option<(f32, f32)> {
+        let u = self.distribution.invert_discrete(index, gamma)?;
+        Some((u, self.distribution.pdf_discrete(index)))
     }
 }
 
@@ -313,7 +337,8 @@ mod tests {
             let (i, pmf, r) = s.sample(rng.uniform());
             assert!(i < 2 && pmf > 0.0 && (0.0..1.0).contains(&r));
             let g = rng.uniform();
-            let u = s.invert(i, g).unwrap();
+            let (u, jacobian) = s.invert(i, g).unwrap();
+            assert_eq!(jacobian, pmf);
             let (j, _, r2) = s.sample(u);
             assert_eq!(i, j);
             assert!((r2 - g).abs() < 1e-4);
@@ -341,12 +366,12 @@ mod tests {
                 let Some(s) = light.sample_li(reference, u) else { continue };
                 let pdf = light.pdf_li(reference, s.wi, s.p, s.n);
                 assert!((pdf - s.pdf).abs() <= 1e-3 * s.pdf, "{pdf} vs {}", s.pdf);
-                let v = light.invert_li(s.wi, 0, s.p, 0.5).unwrap();
+                let v = light.invert_li(s.wi, 0, s.p, 0.5).unwrap().u;
                 let again = light.sample_li(reference, v).unwrap();
                 assert!(again.wi.dot(s.wi) > 1.0 - 1e-6);
                 let ue = [rng.uniform(), rng.uniform(), rng.uniform(), rng.uniform(), rng.uniform()];
                 let Some(e) = light.sample_emission(ue) else { continue };
-                let ve = light.invert_emission(0, e.p, e.dir, 0.5).unwrap();
+                let ve = light.invert_emission(0, e.p, e.dir, 0.5).unwrap().u;
                 let e2 = light.sample_emission(ve).unwrap();
                 assert!(e2.dir.dot(e.dir) > 1.0 - 1e-6 && (e2.p - e.p).length() < 1e-4);
             }
