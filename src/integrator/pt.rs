@@ -356,7 +356,7 @@ mod tests {
         let glass = Material::Dielectric { ior: 1.5 };
         let mut beta = Rgb::ONE;
         let mut eta_scale = 1.0f32;
-        let mut bounce = |wo: Vec3, beta: &mut Rgb, eta_scale: &mut f32| {
+        let bounce = |wo: Vec3, beta: &mut Rgb, eta_scale: &mut f32| {
             // u[0] = 0.99 is past F ≈ 0.04 at normal incidence: the refraction lobe.
             let bs = glass.sample(wo, [0.99, 0.5, 0.5], TransportMode::Radiance).expect("refracts");
             assert_eq!(bs.lobe as usize, crate::material::DIELECTRIC_REFRACT);
