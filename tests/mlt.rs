@@ -15,14 +15,17 @@
 //! - the **brightness**, the image mean, with a power check for a 5% error: this tests b.
 //!
 //! # Settings: the chain, not the bootstrap, makes the image
-//! Each chain starts from a bootstrap path drawn ∝ its target, so a render made of many short chains
-//! is close to a resampled bootstrap whatever the chain's kernel does. The tests run 8 chains per
-//! render (4 per thread) with tens of thousands of mutations each (PSSMLT 256 mutations per pixel of
-//! a 32×32 film: 32,768 per chain; MMLT and RJMLT 1024: 131,072 per chain over the 9 depths, ≥ 10,000
-//! at each of the depths 1–3 that carry most of the light), so the start states weigh less than
-//! 1e-4 of each image and the image is the chain's stationary distribution. 10% rather than 5%
-//! is the share error the tests resolve because the share variance is the chains' own (the path
-//! tracer's references alone would resolve 2–3%): resolving 5% would take 4× the mutations.
+//! Each chain starts from a bootstrap path drawn ∝ its target, so an image made of many short
+//! chains is close to a resampled bootstrap whatever the chain's kernel does. The tests run 8
+//! chains per render (4 per thread) with long runs each: on the 32×32 film PSSMLT's 256 mutations
+//! per pixel are 32,768 per chain, MMLT's 1280 are 163,840 and RJMLT's 3072 are 393,216 per chain
+//! (shared by the depths ∝ b_d). Measured, the previous settings (256 chains of 1,024 to 4,096
+//! mutations) were already past the chains' start at 30% large steps: a wrong small-step kernel
+//! showed up about as strongly in the shares there (see `mlt_agrees_with_pt`), so long chains are
+//! a safeguard here rather than a measured gain.
+//! The share error the tests resolve is 10%, not 5%, because the share variance is the chains' own
+//! (the path tracer's 16 renders alone resolve about 3% in the weakest region): 5% would take 4×
+//! the mutations.
 //! The path tracer's 16 renders of a scene are made once and shared by the three methods' tests.
 
 use std::path::Path;
@@ -79,6 +82,17 @@ const PSSMLT_MUTATIONS_PER_PIXEL: u64 = 256;
 const MMLT_MUTATIONS_PER_PIXEL: u64 = 1280;
 const RJMLT_MUTATIONS_PER_PIXEL: u64 = 3072;
 
+/// The method's region shares and brightness against the path tracer's (module docs).
+///
+/// **Wrong chain** (measured on the Cornell box, then reverted): an asymmetric small step without
+/// its kernel ratio, every small step's Gaussian given a mean of +σ/2 in `pss/sampler.rs`: shares
+/// |z| = 296 (MMLT) and 239 (PSSMLT), brightness z = −0.95 and −0.84. The image mean cannot see a
+/// wrong chain. With a drift 25× smaller (+0.02σ per small step) the shares still fail at |z| = 25.3
+/// (MMLT, these settings) where the region means of the same renders reach 16.0 (they carry b's
+/// noise); the old settings (256 chains of ~4,000 mutations, 50,000 bootstrap paths per depth) gave
+/// 26.4 on shares and 16.8 with the old region-mean test: the old test would have caught both
+/// drifts, since at 30% large steps a chain forgets its bootstrap start within tens of mutations, and
+/// the brightness test alone (z = −1.44) would have caught neither.
 fn mlt_agrees_with_pt(name: &str, method: &str, mutations_per_pixel: u64) {
     let scene = scene(name, 32);
     let reference = pt_renders(name);
