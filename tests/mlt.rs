@@ -86,13 +86,14 @@ const RJMLT_MUTATIONS_PER_PIXEL: u64 = 3072;
 ///
 /// **Wrong chain** (measured on the Cornell box, then reverted): an asymmetric small step without
 /// its kernel ratio, every small step's Gaussian given a mean of +σ/2 in `pss/sampler.rs`: shares
-/// |z| = 296 (MMLT) and 239 (PSSMLT), brightness z = −0.95 and −0.84. The image mean cannot see a
-/// wrong chain. With a drift 25× smaller (+0.02σ per small step) the shares still fail at |z| = 25.3
-/// (MMLT, these settings) where the region means of the same renders reach 16.0 (they carry b's
-/// noise); the old settings (256 chains of ~4,000 mutations, 50,000 bootstrap paths per depth) gave
+/// |z| = 296 (MMLT at 1024 mutations per pixel) and 239 (PSSMLT), brightness z = −0.95 and −0.84. The image mean cannot see a
+/// wrong chain. With a drift 25× smaller (+0.02σ per small step) the shares still fail at these
+/// settings, |z| = 25.3 (MMLT), 33.5 (RJMLT), 9.9 (PSSMLT), where the region means of the same
+/// renders reach 16.0, 19.6 and 6.3 (they carry b's noise) and the brightness −1.35, −0.87, −0.42;
+/// for MMLT the old settings (256 chains of ~4,000 mutations, 50,000 bootstrap paths per depth) gave
 /// 26.4 on shares and 16.8 with the old region-mean test: the old test would have caught both
-/// drifts, since at 30% large steps a chain forgets its bootstrap start within tens of mutations, and
-/// the brightness test alone (z = −1.44) would have caught neither.
+/// drifts (its ~4,000 mutations per chain at 30% large steps already showed the chain's own
+/// distribution), and the brightness test alone (z = −1.44) would have caught neither.
 fn mlt_agrees_with_pt(name: &str, method: &str, mutations_per_pixel: u64) {
     let scene = scene(name, 32);
     let reference = pt_renders(name);
