@@ -1,30 +1,44 @@
 //! PSSMLT, MMLT and RJMLT against closed forms and the path tracer.
 //!
-//! # Why the brightness is testable
+//! # What the agreement tests test
 //! With expected-value splatting every iteration deposits exactly one unit of luminance weight, so
-//! an MLT image's mean luminance is Σ_d n_d·b_d: its error is the error of the normalisation b
-//! (bootstrap plus, with progressive b, every large step), which is where MLT renderers go wrong
-//! in brightness. Independent renders (different seeds) therefore measure the normaliser's
-//! variance directly, and the tests use them the same way as tests/bdpt.rs: K renders per
-//! integrator, luminance means of 16 regions and of the whole image, Welch's z against the path
-//! tracer, |z| < 5 (Bonferroni over 17 comparisons at family-wise level ~1e-3 for the t
-//! distribution with ≥ 15 degrees of freedom), with a power check that a 5% brightness error
-//! would stand out.
+//! an MLT image's mean luminance is Σ_d n_d·b_d whatever the chain does: its error is the error of
+//! the normalisation b (bootstrap plus, with progressive b, every large step). The chain decides
+//! only how that light is shared out over the film. The agreement tests therefore compare two things
+//! between K = 16 independent renders of the method and of the path tracer (tests/common/agreement.rs
+//! states both bounds):
+//! - the **region shares**, region mean ÷ the same render's image mean, of a 4×4 grid: Welch's z per
+//!   region, |z| < 5 (Bonferroni over 16 comparisons, family-wise false failure < 3e-3), with a power
+//!   check that a 10% error of any region's share (regions with at least a quarter of the average
+//!   share) would reach |z| = 5. Dividing by the render's own image mean takes b's error out: this
+//!   tests the chain;
+//! - the **brightness**, the image mean, with a power check for a 5% error: this tests b.
+//!
+//! # Settings: the chain, not the bootstrap, makes the image
+//! Each chain starts from a bootstrap path drawn ∝ its target, so an image made of many short
+//! chains is close to a resampled bootstrap whatever the chain's kernel does. The tests run 8
+//! chains per render (4 per thread) with long runs each: on the 32×32 film PSSMLT's 256 mutations
+//! per pixel are 32,768 per chain, MMLT's 1280 are 163,840 and RJMLT's 3072 are 393,216 per chain
+//! (shared by the depths ∝ b_d). Measured, the previous settings (256 chains of 1,024 to 4,096
+//! mutations) were already past the chains' start at 30% large steps: a wrong small-step kernel
+//! showed up about as strongly in the shares there (see `mlt_agrees_with_pt`), so long chains are
+//! a safeguard here rather than a measured gain.
+//! The share error the tests resolve is 10%, not 5%, because the share variance is the chains' own
+//! (the path tracer's 16 renders alone resolve about 3% in the weakest region): 5% would take 4×
+//! the mutations.
+//! The path tracer's 16 renders of a scene are made once and shared by the three methods' tests.
 
 use std::path::Path;
+use std::sync::OnceLock;
 
 mod common;
-use common::agreement::{assert_agree, estimate};
+use common::agreement::{assert_brightness_agrees, assert_shares_agree, render_regions, RENDERS};
 
 use plexus::camera::Camera;
 use plexus::film::Image;
 use plexus::integrator::{create, Budget, NoProgress, RenderJob};
 use plexus::scene::{load_scene, Scene};
 use plexus::stats::Counters;
-
-/// MLT parameters for the tests: the paper's mutation settings, fewer bootstrap samples and
-/// chains than the defaults so that 16 renders of a 32×32 image stay within seconds.
-const MLT_PARAMS: &str = "max_depth = 8\nbootstrap = 10000\nchains = 256";
 
 fn scene(name: &str, size: u32) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));
@@ -44,47 +58,79 @@ fn render(scene: &Scene, integrator: &str, params: &str, spp: u64, seed: u64) ->
     (out.image, out.counters, out.extra_stats)
 }
 
-fn mlt_agrees_with_pt(name: &str, method: &str, params: &str, mutations_per_pixel: u64) {
-    let scene = scene(name, 32);
-    let pt = estimate(&scene, "pt", "max_depth = 8", 256, 3);
-    let mlt = estimate(&scene, method, params, mutations_per_pixel, 3);
-    assert_agree(&format!("{method} vs pt on {name}"), mlt, pt);
+/// The scenes of the agreement tests, and the path tracer's renders of each (made once, by the
+/// first test that needs them, and shared by the three methods' tests).
+const AGREEMENT_SCENES: [&str; 2] = ["cornell-box", "cornell-glossy"];
+static PT_RENDERS: [OnceLock<Vec<Vec<f64>>>; 2] = [OnceLock::new(), OnceLock::new()];
+
+fn pt_renders(name: &str) -> &'static [Vec<f64>] {
+    let i = AGREEMENT_SCENES.iter().position(|s| *s == name).expect("an agreement scene");
+    PT_RENDERS[i].get_or_init(|| render_regions(&scene(name, 32), "pt", "max_depth = 8", 256, 3, RENDERS))
 }
 
-/// MMLT's brightness rests on one b_d per depth. At depth 0 (the lamp seen directly, ~0.3% of the
-/// film) b_0 is a rare-event estimate: with 10k bootstrap samples and 256 mutations per pixel its
-/// per-render spread was 6.5% (measured), too much for the power check. These settings give it
-/// ~5× the uniform samples.
-const MMLT_TEST_PARAMS: &str = "max_depth = 8\nbootstrap = 50000\nchains = 256";
+/// Few chains, many mutations each (module docs): 8 chains, the paper's mutation settings, a
+/// bootstrap of 10,000 paths per depth (it only starts the chains and, for MMLT and RJMLT, chooses
+/// the depths; progressive b refines b_d from the large steps).
+const MLT_PARAMS: &str = "max_depth = 8\nbootstrap = 10000\nchains = 8";
+/// Mutations per pixel, each the least that passes the power check with some margin. A PSSMLT
+/// mutation evaluates every technique of two full-length subpaths (~8× an MMLT mutation) and gives
+/// the shares several times less variance per mutation. Measured power (|z| a 10% error of the
+/// weakest region that needs power would reach): PSSMLT at 256: 5.7 (glossy), 6.0 (box); MMLT at
+/// 1024: 4.9 (glossy), so 1280: 5.6 (box); RJMLT (its own 10% large steps: more correlated
+/// chains) at 1024: 3.1 (glossy), so 3072.
+const PSSMLT_MUTATIONS_PER_PIXEL: u64 = 256;
+const MMLT_MUTATIONS_PER_PIXEL: u64 = 1280;
+const RJMLT_MUTATIONS_PER_PIXEL: u64 = 3072;
+
+/// The method's region shares and brightness against the path tracer's (module docs).
+///
+/// **Wrong chain** (measured on the Cornell box, then reverted): an asymmetric small step without
+/// its kernel ratio, every small step's Gaussian given a mean of +σ/2 in `pss/sampler.rs`: shares
+/// |z| = 296 (MMLT at 1024 mutations per pixel) and 239 (PSSMLT), brightness z = −0.95 and −0.84. The image mean cannot see a
+/// wrong chain. With a drift 25× smaller (+0.02σ per small step) the shares still fail at these
+/// settings, |z| = 25.3 (MMLT), 33.5 (RJMLT), 9.9 (PSSMLT), where the region means of the same
+/// renders reach 16.0, 19.6 and 6.3 (they carry b's noise) and the brightness −1.35, −0.87, −0.42;
+/// for MMLT the old settings (256 chains of ~4,000 mutations, 50,000 bootstrap paths per depth) gave
+/// 26.4 on shares and 16.8 with the old region-mean test: the old test would have caught both
+/// drifts (its ~4,000 mutations per chain at 30% large steps already showed the chain's own
+/// distribution), and the brightness test alone (z = −1.44) would have caught neither.
+fn mlt_agrees_with_pt(name: &str, method: &str, mutations_per_pixel: u64) {
+    let scene = scene(name, 32);
+    let reference = pt_renders(name);
+    let renders = render_regions(&scene, method, MLT_PARAMS, mutations_per_pixel, 3, RENDERS);
+    let what = format!("{method} vs pt on {name}");
+    assert_shares_agree(&what, &renders, reference);
+    assert_brightness_agrees(&what, &renders, reference);
+}
 
 #[test]
 fn pssmlt_agrees_with_pt_on_cornell_box() {
-    mlt_agrees_with_pt("cornell-box", "pssmlt", MLT_PARAMS, 256);
+    mlt_agrees_with_pt("cornell-box", "pssmlt", PSSMLT_MUTATIONS_PER_PIXEL);
 }
 
 #[test]
 fn pssmlt_agrees_with_pt_on_cornell_glossy() {
-    mlt_agrees_with_pt("cornell-glossy", "pssmlt", MLT_PARAMS, 256);
+    mlt_agrees_with_pt("cornell-glossy", "pssmlt", PSSMLT_MUTATIONS_PER_PIXEL);
 }
 
 #[test]
 fn mmlt_agrees_with_pt_on_cornell_box() {
-    mlt_agrees_with_pt("cornell-box", "mmlt", MMLT_TEST_PARAMS, 1024);
+    mlt_agrees_with_pt("cornell-box", "mmlt", MMLT_MUTATIONS_PER_PIXEL);
 }
 
 #[test]
 fn mmlt_agrees_with_pt_on_cornell_glossy() {
-    mlt_agrees_with_pt("cornell-glossy", "mmlt", MMLT_TEST_PARAMS, 1024);
+    mlt_agrees_with_pt("cornell-glossy", "mmlt", MMLT_MUTATIONS_PER_PIXEL);
 }
 
 #[test]
 fn rjmlt_agrees_with_pt_on_cornell_box() {
-    mlt_agrees_with_pt("cornell-box", "rjmlt", MMLT_TEST_PARAMS, 1024);
+    mlt_agrees_with_pt("cornell-box", "rjmlt", RJMLT_MUTATIONS_PER_PIXEL);
 }
 
 #[test]
 fn rjmlt_agrees_with_pt_on_cornell_glossy() {
-    mlt_agrees_with_pt("cornell-glossy", "rjmlt", MMLT_TEST_PARAMS, 1024);
+    mlt_agrees_with_pt("cornell-glossy", "rjmlt", RJMLT_MUTATIONS_PER_PIXEL);
 }
 
 /// RJMLT's technique jumps (Bitterli et al. 2017, Sec. 6.2) in the renderer: jumps to another
