@@ -35,6 +35,7 @@
 //! Each iteration splats the proposal with weight a and the current state with 1 − a (Veach's
 //! expected values), so rejected proposals still contribute.
 
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 
 use glam::Vec2;
@@ -67,6 +68,21 @@ const STREAM_COUNT: usize = 4;
 const BOOTSTRAP_SEED_SALT: u64 = 0xB007_5742_u64;
 /// Distinguishes the chains' own streams (depth choice, acceptance) from the bootstrap's.
 const CHAIN_SEED_SALT: u64 = 0xC4A1_0000_u64;
+/// Distinguishes the sub-chains' mutation streams (stream c·D + d for chain c, depth d) from the
+/// bootstrap's: chains that start from the same bootstrap sample must then mutate independently.
+const SUBCHAIN_SEED_SALT: u64 = 0x5EA2_C400_u64;
+
+/// Share of the depth choice spread evenly over the depths (MMLT, RJMLT), so that a depth whose
+/// b_d estimate is 0 or far too small is still visited: p(d) = (1 − ε)·b̂_d/Σb̂ + ε/D, with b̂_d
+/// the render's estimate at the end of the previous pass (`Mlt::depth_choice`, `PooledLargeSteps`). The MMLT paper (Sec. 4,
+/// "Initialization") chooses p(d) ∝ b_d and recommends progressive b as "less likely to miss rare
+/// bounces when an initial estimate of b_k is zero but b_k > 0"; but with p(d) ∝ b_d alone a depth
+/// whose bootstrap b_d is 0 never receives an iteration, so no large step of it ever refines b_d
+/// and its light is lost (issue 12: the door scene with 200 bootstrap paths lost depth 1,
+/// b ≈ 5e-4, in 3 of 4 seeds). The estimator does not depend on p(d): each depth's film is divided
+/// by the iterations that depth received (module docs, "Normalisation"), so p(d) only moves
+/// effort, and the floor costs at most ε of the iterations on depths that carry no light.
+const DEPTH_CHOICE_FLOOR: f64 = 0.1;
 
 /// PSSMLT, MMLT or RJMLT.
 #[derive(Clone, Debug)]
@@ -107,7 +123,9 @@ struct Bootstrap<'a> {
     paths: u64,
 }
 
-/// A chain for one depth (MMLT) or for all depths (PSSMLT).
+/// A chain for one depth (MMLT) or for all depths (PSSMLT). A sub-chain of a depth the bootstrap
+/// missed starts with a zero-target state and searches (`Mlt::search`) until a large step finds
+/// its first non-zero state.
 #[derive(Clone, Debug)]
 struct SubChain {
     sampler: PssSampler,
@@ -117,8 +135,22 @@ struct SubChain {
 /// A Markov chain unit: its own random stream (depth choice, acceptance) and its sub-chains.
 struct ChainUnit {
     rng: Rng,
-    /// Indexed by depth for MMLT (None where b_d = 0); one entry for PSSMLT.
+    /// Per depth: sum and count of this unit's large-step targets so far, for the depth choice.
+    large_steps: Vec<(f64, u64)>,
+    /// Indexed by depth for MMLT and RJMLT (None only where the depth is never chosen:
+    /// bootstrap b_d = 0 without progressive b); one entry for PSSMLT.
     subchains: Vec<Option<SubChain>>,
+}
+
+/// The render-wide large steps behind the depth choice, pooled deterministically: after its
+/// segment of pass k every unit writes its running totals to `written[k mod 2][unit]`; the first
+/// unit of pass k + 1 to need the choice sums `written[k mod 2]` in unit order (all of pass k has
+/// ended: passes are synchronised) while pass k + 1 writes the other buffer. So every unit of a
+/// pass uses the same choice, whatever the threads' timing, and the image stays bit-identical.
+struct PooledLargeSteps {
+    written: [Vec<Mutex<Vec<(f64, u64)>>>; 2],
+    /// The choice of the pass it was computed for.
+    choice: Mutex<Option<(u64, Arc<Distribution1D>)>>,
 }
 
 /// Per-slot buffers and statistics.
@@ -151,8 +183,12 @@ struct SlotState {
     /// Acceptance of large steps ([0]) and small steps ([1]), reported as strategies at the end
     /// (kept here so the per-mutation path does not touch the counters' string-keyed map).
     step_acceptance: [AcceptanceCount; 2],
-    /// Per depth: sum and count of large-step targets (for progressive b).
+    /// Per depth: sum and count of large-step targets (for progressive b), searches included.
     large_steps: Vec<(f64, u64)>,
+    /// Per depth: large steps of sub-chains still searching for their first non-zero state (not
+    /// iterations of the depth: they splat nothing), and searches that found one.
+    search_steps: Vec<u64>,
+    searches_found: Vec<u64>,
     /// MMLT: per depth, iterations with each technique s as the state.
     technique_counts: Vec<Vec<u64>>,
     /// MMLT with count layers: per (depth, s) an image of state counts.
@@ -326,6 +362,8 @@ impl Mlt {
             jump_ratio_max_deviation: 0.0,
             step_acceptance: [AcceptanceCount::default(); 2],
             large_steps: vec![(0.0, 0); depths],
+            search_steps: vec![0; depths],
+            searches_found: vec![0; depths],
             technique_counts: (0..depths).map(|d| vec![0; self.technique_count(d)]).collect(),
             count_films: (self.settings.technique_count_layers && self.variant != MltVariant::Pssmlt)
                 .then(|| (0..depths).map(|d| vec![Accumulator::new(width, height); self.technique_count(d)]).collect()),
@@ -371,7 +409,8 @@ impl Mlt {
     }
 
     /// One Metropolis iteration of sub-chain `d`: a large or small step of the primary samples
-    /// (all methods), or for RJMLT, with probability `jump_probability`, a technique jump.
+    /// (all methods), or for RJMLT, with probability `jump_probability`, a technique jump. Returns
+    /// the proposal's target if it was a large step (a uniform sample, for b_d).
     fn iterate(
         &self,
         ctx: &BdptContext,
@@ -380,7 +419,10 @@ impl Mlt {
         rng: &mut Rng,
         slot: &mut SlotState,
         counters: &mut Counters,
-    ) {
+    ) -> Option<f32> {
+        if !(chain.current.target > 0.0) {
+            return Some(self.search(ctx, d, chain, slot, counters));
+        }
         let (large, jump) = if self.variant == MltVariant::Rjmlt {
             let u = rng.uniform() as f64;
             let large = u < self.settings.large_step_probability;
@@ -397,7 +439,7 @@ impl Mlt {
                     self.splat(d, &chain.current, 1.0, slot);
                     slot.iterations[d] += 1;
                     self.count_technique_state(d, &chain.current, slot);
-                    return;
+                    return None;
                 }
             }
         } else {
@@ -420,10 +462,7 @@ impl Mlt {
             (proposal, a)
         };
         counters.samples += 1;
-        if large {
-            slot.large_steps[d].0 += proposal.target as f64;
-            slot.large_steps[d].1 += 1;
-        }
+        let large_step_target = large.then_some(proposal.target);
         if proposal.target > 0.0 {
             slot.nonzero_proposals += 1;
         }
@@ -460,6 +499,87 @@ impl Mlt {
             chain.sampler.reject();
         }
         self.count_technique_state(d, &chain.current, slot);
+        large_step_target
+    }
+
+    /// A sub-chain with no non-zero state yet (its depth's bootstrap found no light) takes a large
+    /// step: a uniform sample of (ū, u_t) (RJMLT: of (s, ū)), which counts in b_d like every
+    /// large step. The first non-zero one becomes the chain's state. Until then nothing is
+    /// splatted and no iteration of the depth is counted, so the depth's image (film ÷ iterations)
+    /// is an average over states of chains that have found light; what remains is the start-up
+    /// bias of a chain started from a uniform sample restricted to f̂ > 0 instead of ∝ f̂, which
+    /// vanishes as the chain runs (as does that of the bootstrap's finite resampling), and the
+    /// finite-sample effect of stopping each chain's search at its first success on b_d, which
+    /// the chain's later large steps dilute: the estimator is consistent.
+    fn search(
+        &self,
+        ctx: &BdptContext,
+        d: usize,
+        chain: &mut SubChain,
+        slot: &mut SlotState,
+        counters: &mut Counters,
+    ) -> f32 {
+        chain.sampler.start_iteration_with(true);
+        let proposal = self.evaluate(ctx, d, &mut chain.sampler, None, slot, counters);
+        counters.samples += 1;
+        slot.search_steps[d] += 1;
+        let target = proposal.target;
+        if target > 0.0 {
+            slot.searches_found[d] += 1;
+            chain.sampler.accept();
+            chain.current = proposal;
+        } else {
+            chain.sampler.reject();
+        }
+        target
+    }
+
+    /// The depth choice of pass `pass`: p(d) = (1 − ε)·b̂_d/Σb̂ + ε/D (`DEPTH_CHOICE_FLOOR`), with
+    /// b̂_d the bootstrap's estimate refined, under progressive b, by every large step of the
+    /// passes before (the MMLT paper's progressive b_k, Sec. 4 "Initialization", applied to the
+    /// choice as well as to the normalisation). Depths that cannot be recovered (bootstrap b_d = 0
+    /// without progressive b: their image is scaled by b_d = 0) are never chosen.
+    fn depth_choice(&self, bootstrap: &Bootstrap, pooled: &PooledLargeSteps, pass: u64) -> Arc<Distribution1D> {
+        let mut cached = pooled.choice.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some((p, choice)) = cached.as_ref() {
+            if *p == pass {
+                return choice.clone();
+            }
+        }
+        let depths = self.depth_count();
+        let mut large_steps = vec![(0.0f64, 0u64); depths];
+        if pass > 0 {
+            for unit in &pooled.written[((pass - 1) % 2) as usize] {
+                let unit = unit.lock().unwrap_or_else(PoisonError::into_inner);
+                for (total, own) in large_steps.iter_mut().zip(unit.iter()) {
+                    total.0 += own.0;
+                    total.1 += own.1;
+                }
+            }
+        }
+        let b: Vec<f64> = (0..depths)
+            .map(|d| {
+                if self.settings.progressive_b {
+                    let (sum, n) = large_steps[d];
+                    (bootstrap.sums[d] + sum) / (bootstrap.paths + n) as f64
+                } else {
+                    bootstrap.sums[d] / bootstrap.paths as f64
+                }
+            })
+            .collect();
+        let recoverable = |d: usize| self.settings.progressive_b || bootstrap.sums[d] > 0.0;
+        let recoverable_depths = (0..depths).filter(|&d| recoverable(d)).count().max(1) as f64;
+        let total: f64 = b.iter().sum();
+        let weights: Vec<f32> = (0..depths)
+            .map(|d| {
+                let share = if total > 0.0 { b[d] / total } else { 0.0 };
+                let floor = if recoverable(d) { DEPTH_CHOICE_FLOOR / recoverable_depths } else { 0.0 };
+                ((1.0 - DEPTH_CHOICE_FLOOR) * share + floor) as f32
+            })
+            .collect();
+        let choice = Arc::new(Distribution1D::new(&weights));
+        *cached = Some((pass, choice.clone()));
+        choice
     }
 
     /// Splats `state`'s contributions with weight `w` / target (Veach's expected values).
@@ -683,7 +803,19 @@ impl Integrator for Mlt {
                 extra_stats: serde_json::json!({ "warnings": warnings, "b": b_boot, "bootstrap_paths_per_depth": n_boot }),
             });
         }
-        let depth_choice = Distribution1D::new(&b_boot.iter().map(|&b| b as f32).collect::<Vec<_>>());
+        // Without progressive b a depth's b_d stays the bootstrap's, so a depth it missed cannot
+        // be recovered and is not chosen (`depth_choice`); a warning says so.
+        let recoverable = |d: usize| b_boot[d] > 0.0 || self.settings.progressive_b;
+        if depths > 1 && !self.settings.progressive_b {
+            let missed: Vec<usize> = (0..depths).filter(|&d| b_boot[d] == 0.0).collect();
+            if !missed.is_empty() {
+                warnings.push(format!(
+                    "no bootstrap path ({n_boot} per depth) found light at depth(s) {missed:?}, and without \
+                     progressive_b their b_d stays 0: their light is missing from the image. Raise `bootstrap` \
+                     or enable `progressive_b`."
+                ));
+            }
+        }
         let boot_dists: Vec<Option<Distribution1D>> =
             boot_targets.iter().zip(&b_boot).map(|(t, &b)| (b > 0.0).then(|| Distribution1D::new(t))).collect();
 
@@ -697,16 +829,22 @@ impl Integrator for Mlt {
                 let mut rng = Rng::new(job.seed ^ CHAIN_SEED_SALT, c);
                 let subchains = (0..depths)
                     .map(|d| {
-                        let dist = boot_dists[d].as_ref()?;
+                        let own_stream = Rng::new(job.seed ^ SUBCHAIN_SEED_SALT, c * depths as u64 + d as u64);
+                        let Some(dist) = boot_dists[d].as_ref() else {
+                            // A depth the bootstrap missed: the chain searches from a zero state.
+                            let sampler = PssSampler::new(own_stream, self.mutation(), STREAM_COUNT);
+                            return recoverable(d).then(|| SubChain { sampler, current: PathState::default() });
+                        };
                         let (i, _, _) = dist.sample_discrete(rng.uniform());
                         let mut sampler = self.bootstrap_sampler(job.seed, d, i as u64);
                         sampler.start_iteration_with(true);
                         let current = self.evaluate(&ctx, d, &mut sampler, None, &mut init_slot, &mut init_counters);
                         sampler.accept();
+                        sampler.reseed(own_stream);
                         Some(SubChain { sampler, current })
                     })
                     .collect();
-                ChainUnit { rng, subchains }
+                ChainUnit { rng, large_steps: vec![(0.0, 0); depths], subchains }
             })
             .collect();
 
@@ -728,19 +866,32 @@ impl Integrator for Mlt {
             let states: Vec<&SlotState> = slots.iter().map(|slot| &slot.state).collect();
             self.normalised_image(&states, &bootstrap, width, height).0
         };
+        let unit_totals = || (0..self.settings.chains).map(|_| Mutex::new(vec![(0.0, 0); depths])).collect();
+        let pooled = PooledLargeSteps { written: [unit_totals(), unit_totals()], choice: Mutex::new(None) };
         let out = driver.run(
             units,
             passes,
             progress,
             |_| self.new_slot(width, height),
-            |_, unit, slot| {
+            |item, unit, slot| {
                 let state = &mut slot.state;
                 let counters = &mut slot.counters;
+                let depth_choice = (depths > 1).then(|| self.depth_choice(&bootstrap, &pooled, item.pass));
                 for _ in 0..segment {
-                    let d = if depths == 1 { 0 } else { depth_choice.sample_discrete(unit.rng.uniform()).0 };
-                    if let Some(chain) = unit.subchains[d].as_mut() {
-                        self.iterate(&ctx, d, chain, &mut unit.rng, state, counters);
+                    let d = depth_choice.as_ref().map_or(0, |c| c.sample_discrete(unit.rng.uniform()).0);
+                    let Some(chain) = unit.subchains[d].as_mut() else { continue };
+                    if let Some(target) = self.iterate(&ctx, d, chain, &mut unit.rng, state, counters) {
+                        for large_steps in [&mut state.large_steps[d], &mut unit.large_steps[d]] {
+                            large_steps.0 += target as f64;
+                            large_steps.1 += 1;
+                        }
                     }
+                }
+                if depths > 1 {
+                    let mut written = pooled.written[(item.pass % 2) as usize][item.unit]
+                        .lock()
+                        .unwrap_or_else(PoisonError::into_inner);
+                    written.clone_from(&unit.large_steps);
                 }
                 if slot.index == 0 {
                     let acc: AcceptanceCount = state.acceptance.iter().fold(AcceptanceCount::default(), |mut a, b| {
@@ -769,6 +920,8 @@ impl Integrator for Mlt {
                 merged.jumps[d].merge(&s.jumps[d]);
                 merged.large_steps[d].0 += s.large_steps[d].0;
                 merged.large_steps[d].1 += s.large_steps[d].1;
+                merged.search_steps[d] += s.search_steps[d];
+                merged.searches_found[d] += s.searches_found[d];
                 for (a, b) in merged.technique_counts[d].iter_mut().zip(&s.technique_counts[d]) {
                     *a += b;
                 }
@@ -823,6 +976,8 @@ impl Integrator for Mlt {
                     "b_bootstrap": b_boot[d],
                     "b": b_final[d],
                     "iterations": merged.iterations[d],
+                    "search_steps": merged.search_steps[d],
+                    "searches_found": merged.searches_found[d],
                     "acceptance": merged.acceptance[d].rate(),
                     "small_step_acceptance": rate_or_null(&merged.small_steps[d]),
                     "technique_change": if self.variant == MltVariant::Mmlt {

@@ -88,6 +88,13 @@ impl PssSampler {
         }
     }
 
+    /// The chain continues its mutations from `rng`: a chain started from a reproduced bootstrap
+    /// sample must not keep the bootstrap sample's stream, or every chain started from the same
+    /// sample would propose the same mutations.
+    pub fn reseed(&mut self, rng: Rng) {
+        self.rng = rng;
+    }
+
     /// Starts a new proposal: decides whether it is a large step (with the configured probability).
     pub fn start_iteration(&mut self) {
         let large = self.rng.uniform_f64() < self.settings.large_step_probability;
