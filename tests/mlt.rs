@@ -225,7 +225,7 @@ fn mlt_settings_are_validated() {
 /// depth 0 carries ~55% of the image's light and got no iteration whenever the bootstrap missed
 /// it, so the renders split into those with and without the lamp and the image mean's standard
 /// error was 0.00705 (5.2% of the mean) — the power check fails before the regions are compared.
-/// Runtime: 26 s on 2 cores under load ~10 (other builds running); 12–13 s unloaded expected.
+/// Runtime: 26 s on 2 cores under load ~10 (other engineers' builds running).
 #[test]
 fn mlt_renders_depths_the_bootstrap_missed() {
     let scene = scene("cornell-box", 32);
