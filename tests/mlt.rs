@@ -240,3 +240,27 @@ fn mlt_renders_depths_the_bootstrap_missed() {
     let mmlt = estimate(&scene, "mmlt", params, 256, 11);
     assert_agree("mmlt with a 20-path bootstrap vs pt", mmlt, pt);
 }
+
+/// The small-step kernel setting: "gaussian" (default) or "exponential" with Kelemen's s1 < s2,
+/// anything else refused with a message naming the setting.
+#[test]
+fn mlt_small_step_setting_is_validated() {
+    for method in ["pssmlt", "mmlt", "rjmlt"] {
+        let settings = create(method, &toml::Table::new()).expect("defaults").settings_json();
+        assert_eq!(settings["small_step"], "gaussian", "{method}");
+        let table: toml::Table = toml::from_str("small_step = \"exponential\"").expect("test parameters");
+        let settings = create(method, &table).expect("exponential").settings_json();
+        assert_eq!(settings["small_step"], "exponential", "{method}");
+        assert_eq!(settings["small_step_min"], 1.0 / 1024.0, "{method}");
+        assert_eq!(settings["small_step_max"], 1.0 / 64.0, "{method}");
+        for (params, needle) in [
+            ("small_step = \"laplace\"", "small_step"),
+            ("small_step = \"exponential\"\nsmall_step_min = 0.1\nsmall_step_max = 0.05", "small_step_min"),
+            ("small_step_max = 0.9", "small_step_max"),
+        ] {
+            let table: toml::Table = toml::from_str(params).expect("test parameters");
+            let err = create(method, &table).err().unwrap_or_else(|| panic!("{method} accepted {params}"));
+            assert!(err.to_string().contains(needle), "{method}: {err}");
+        }
+    }
+}

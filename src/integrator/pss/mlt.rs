@@ -137,11 +137,14 @@ struct SubChain {
 struct ChainUnit {
     rng: Rng,
     /// Per depth: sum and count of this unit's large-step targets so far, for the depth choice.
-    large_steps: Vec<(f64, u64)>,
+    large_steps: LargeStepTotals,
     /// Indexed by depth for MMLT and RJMLT (None only where the depth is never chosen:
     /// bootstrap b_d = 0 without progressive b); one entry for PSSMLT.
     subchains: Vec<Option<SubChain>>,
 }
+
+/// Per depth: the sum and count of large-step targets.
+type LargeStepTotals = Vec<(f64, u64)>;
 
 /// The render-wide large steps behind the depth choice, pooled deterministically: after its
 /// segment of pass k every unit writes its running totals to `written[k mod 2][unit]`; the first
@@ -149,7 +152,7 @@ struct ChainUnit {
 /// ended: passes are synchronised) while pass k + 1 writes the other buffer. So every unit of a
 /// pass uses the same choice, whatever the threads' timing, and the image stays bit-identical.
 struct PooledLargeSteps {
-    written: [Vec<Mutex<Vec<(f64, u64)>>>; 2],
+    written: [Vec<Mutex<LargeStepTotals>>; 2],
     /// The choice of the pass it was computed for.
     choice: Mutex<Option<(u64, Arc<Distribution1D>)>>,
 }
@@ -190,7 +193,10 @@ impl Mlt {
     }
 
     fn mutation(&self) -> MutationSettings {
-        MutationSettings { large_step_probability: self.settings.large_step_probability, sigma: self.settings.sigma }
+        MutationSettings {
+            large_step_probability: self.settings.large_step_probability,
+            small_step: self.settings.small_step(),
+        }
     }
 
     /// The bootstrap sampler for sample `i` of depth slot `d`: a fresh chain whose first (large)

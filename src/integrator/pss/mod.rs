@@ -8,4 +8,4 @@ pub mod settings;
 pub mod stats;
 pub mod validation_1d;
 
-pub use sampler::{MutationSettings, PssSampler};
+pub use sampler::{MutationSettings, PssSampler, SmallStep};

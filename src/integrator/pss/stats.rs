@@ -311,7 +311,9 @@ mod tests {
         a.moves.small =
             MoveStats { proposals: 10, accepted: 5, paths_evaluated: 10, paths_nonzero: 8, ..MoveStats::default() };
         let mut b = a.clone();
-        b.jumps.as_mut().map(|j| j.ratio_max_deviation = 0.5);
+        if let Some(j) = b.jumps.as_mut() {
+            j.ratio_max_deviation = 0.5;
+        }
         a.merge(&b);
         a.finish(4, &[0.0, 1.0], &[0.5, 2.0]);
         let json = serde_json::to_value(&a).expect("serialises");
