@@ -67,7 +67,7 @@ for method in ("pssmlt", "mmlt", "rjmlt"):
 def pct(x):
     return "—" if x is None else "%.1f%%" % (100.0 * x)
 
-print("| method | mutations | mutations/s | acceptance | effective path ratio | non-zero proposals | bootstrap (paths/depth, s) | wall time |")
+print("| method | mutations | mutations/s | acceptance | effective path ratio (all; large / small / jump) | non-zero proposals | bootstrap (paths/depth, s) | wall time |")
 print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
 for method, doc in docs.items():
     st = doc["integrator_stats"]
@@ -75,8 +75,11 @@ for method, doc in docs.items():
     # Mutations per second of chain time: the render's wall time minus the bootstrap.
     chain_s = (wall - boot) if isinstance(wall, (int, float)) and wall > boot else None
     rate = muts / chain_s if chain_s else float("nan")
-    print("| %s | %d | %.3g | %s | %s | %s | %s, %.2f s | %.1f s |" % (method.upper(), muts, rate, pct(st["acceptance"]),
-          pct(st["effective_path_ratio"]), pct(st["nonzero_proposal_ratio"]), st.get("bootstrap_paths_per_depth"), boot, wall))
+    moves = st["moves"]
+    per_move = " / ".join(pct((moves.get(k) or {}).get("effective_path_ratio")) for k in ("large", "small", "jump"))
+    print("| %s | %d | %.3g | %s | %s; %s | %s | %s, %.2f s | %.1f s |" % (method.upper(), muts, rate, pct(st["acceptance"]),
+          pct(st["effective_path_ratio"]), per_move, pct(st["nonzero_proposal_ratio"]), st.get("bootstrap_paths_per_depth"),
+          boot, wall))
 print()
 print("MMLT per depth (d = scattering events; technique share = fraction of iterations the state used (s, t)):")
 print()

@@ -35,6 +35,7 @@
 //! Each iteration splats the proposal with weight a and the current state with 1 − a (Veach's
 //! expected values), so rejected proposals still contribute.
 
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 
 use glam::Vec2;
@@ -43,6 +44,7 @@ use super::inverse::{invert_technique, same_path, InversionFailure};
 use super::jump::{jump_acceptance, JumpSide};
 use super::sampler::{MutationSettings, PssSampler};
 use super::settings::{MltSettings, MltVariant};
+use super::stats::{MltStats, MoveKind, MoveStats};
 use crate::film::{Accumulator, Image};
 use crate::integrator::bdpt::path::full_path;
 use crate::integrator::bdpt::{
@@ -67,6 +69,21 @@ const STREAM_COUNT: usize = 4;
 const BOOTSTRAP_SEED_SALT: u64 = 0xB007_5742_u64;
 /// Distinguishes the chains' own streams (depth choice, acceptance) from the bootstrap's.
 const CHAIN_SEED_SALT: u64 = 0xC4A1_0000_u64;
+/// Distinguishes the sub-chains' mutation streams (stream c·D + d for chain c, depth d) from the
+/// bootstrap's: chains that start from the same bootstrap sample must then mutate independently.
+const SUBCHAIN_SEED_SALT: u64 = 0x5EA2_C400_u64;
+
+/// Share of the depth choice spread evenly over the depths (MMLT, RJMLT), so that a depth whose
+/// b_d estimate is 0 or far too small is still visited: p(d) = (1 − ε)·b̂_d/Σb̂ + ε/D, with b̂_d
+/// the render's estimate at the end of the previous pass (`Mlt::depth_choice`, `PooledLargeSteps`). The MMLT paper (Sec. 4,
+/// "Initialization") chooses p(d) ∝ b_d and recommends progressive b as "less likely to miss rare
+/// bounces when an initial estimate of b_k is zero but b_k > 0"; but with p(d) ∝ b_d alone a depth
+/// whose bootstrap b_d is 0 never receives an iteration, so no large step of it ever refines b_d
+/// and its light is lost (issue 12: the door scene with 200 bootstrap paths lost depth 1,
+/// b ≈ 5e-4, in 3 of 4 seeds). The estimator does not depend on p(d): each depth's film is divided
+/// by the iterations that depth received (module docs, "Normalisation"), so p(d) only moves
+/// effort, and the floor costs at most ε of the iterations on depths that carry no light.
+const DEPTH_CHOICE_FLOOR: f64 = 0.1;
 
 /// PSSMLT, MMLT or RJMLT.
 #[derive(Clone, Debug)]
@@ -107,7 +124,9 @@ struct Bootstrap<'a> {
     paths: u64,
 }
 
-/// A chain for one depth (MMLT) or for all depths (PSSMLT).
+/// A chain for one depth (MMLT) or for all depths (PSSMLT). A sub-chain of a depth the bootstrap
+/// missed starts with a zero-target state and searches (`Mlt::search`) until a large step finds
+/// its first non-zero state.
 #[derive(Clone, Debug)]
 struct SubChain {
     sampler: PssSampler,
@@ -117,46 +136,37 @@ struct SubChain {
 /// A Markov chain unit: its own random stream (depth choice, acceptance) and its sub-chains.
 struct ChainUnit {
     rng: Rng,
-    /// Indexed by depth for MMLT (None where b_d = 0); one entry for PSSMLT.
+    /// Per depth: sum and count of this unit's large-step targets so far, for the depth choice.
+    large_steps: LargeStepTotals,
+    /// Indexed by depth for MMLT and RJMLT (None only where the depth is never chosen:
+    /// bootstrap b_d = 0 without progressive b); one entry for PSSMLT.
     subchains: Vec<Option<SubChain>>,
 }
 
-/// Per-slot buffers and statistics.
+/// Per depth: the sum and count of large-step targets.
+type LargeStepTotals = Vec<(f64, u64)>;
+
+/// The render-wide large steps behind the depth choice, pooled deterministically: after its
+/// segment of pass k every unit writes its running totals to `written[k mod 2][unit]`; the first
+/// unit of pass k + 1 to need the choice sums `written[k mod 2]` in unit order (all of pass k has
+/// ended: passes are synchronised) while pass k + 1 writes the other buffer. So every unit of a
+/// pass uses the same choice, whatever the threads' timing, and the image stays bit-identical.
+struct PooledLargeSteps {
+    written: [Vec<Mutex<LargeStepTotals>>; 2],
+    /// The choice of the pass it was computed for.
+    choice: Mutex<Option<(u64, Arc<Distribution1D>)>>,
+}
+
+/// Per-slot buffers, films and statistics.
 struct SlotState {
     camera: Vec<Vertex>,
     light: Vec<Vertex>,
     scratch: ConnectScratch,
     /// One film per depth (MMLT) or one (PSSMLT).
     films: Vec<Accumulator>,
-    iterations: Vec<u64>,
-    acceptance: Vec<AcceptanceCount>,
-    nonzero_proposals: u64,
-    /// Technique paths evaluated by proposals, and those with a non-zero contribution.
-    paths_evaluated: u64,
-    paths_nonzero: u64,
-    /// Per depth: small steps (all methods), MMLT small steps whose proposal changes the technique,
-    /// and RJMLT technique jumps to another technique (the paper's Fig. 4 (a), (b), (c)).
-    small_steps: Vec<AcceptanceCount>,
-    technique_changes: Vec<AcceptanceCount>,
-    jumps: Vec<AcceptanceCount>,
-    /// RJMLT: jumps that chose the current technique (nothing changes), inverses that failed (by
-    /// `InversionFailure::ALL` order), inverses that did not reproduce the path, and valid jumps
-    /// whose ratio r of Eq. 38/43 was off 1 by more than 1e-3.
-    jumps_to_same_technique: u64,
-    inversion_failures: [u64; 5],
-    path_mismatches: u64,
-    jump_ratio_off: u64,
-    /// RJMLT: largest |r − 1| over valid jumps.
-    jump_ratio_max_deviation: f64,
-    /// Acceptance of large steps ([0]) and small steps ([1]), reported as strategies at the end
-    /// (kept here so the per-mutation path does not touch the counters' string-keyed map).
-    step_acceptance: [AcceptanceCount; 2],
-    /// Per depth: sum and count of large-step targets (for progressive b).
-    large_steps: Vec<(f64, u64)>,
-    /// MMLT: per depth, iterations with each technique s as the state.
-    technique_counts: Vec<Vec<u64>>,
     /// MMLT with count layers: per (depth, s) an image of state counts.
     count_films: Option<Vec<Vec<Accumulator>>>,
+    stats: MltStats,
 }
 
 impl Mlt {
@@ -183,7 +193,10 @@ impl Mlt {
     }
 
     fn mutation(&self) -> MutationSettings {
-        MutationSettings { large_step_probability: self.settings.large_step_probability, sigma: self.settings.sigma }
+        MutationSettings {
+            large_step_probability: self.settings.large_step_probability,
+            small_step: self.settings.small_step(),
+        }
     }
 
     /// The bootstrap sampler for sample `i` of depth slot `d`: a fresh chain whose first (large)
@@ -311,24 +324,14 @@ impl Mlt {
             light: Vec::new(),
             scratch: ConnectScratch::default(),
             films: vec![Accumulator::new(width, height); depths],
-            iterations: vec![0; depths],
-            acceptance: vec![AcceptanceCount::default(); depths],
-            nonzero_proposals: 0,
-            paths_evaluated: 0,
-            paths_nonzero: 0,
-            small_steps: vec![AcceptanceCount::default(); depths],
-            technique_changes: vec![AcceptanceCount::default(); depths],
-            jumps: vec![AcceptanceCount::default(); depths],
-            jumps_to_same_technique: 0,
-            inversion_failures: [0; 5],
-            path_mismatches: 0,
-            jump_ratio_off: 0,
-            jump_ratio_max_deviation: 0.0,
-            step_acceptance: [AcceptanceCount::default(); 2],
-            large_steps: vec![(0.0, 0); depths],
-            technique_counts: (0..depths).map(|d| vec![0; self.technique_count(d)]).collect(),
             count_films: (self.settings.technique_count_layers && self.variant != MltVariant::Pssmlt)
                 .then(|| (0..depths).map(|d| vec![Accumulator::new(width, height); self.technique_count(d)]).collect()),
+            stats: MltStats::new(
+                &(0..depths).map(|d| self.technique_count(d)).collect::<Vec<_>>(),
+                self.variant != MltVariant::Pssmlt,
+                self.variant == MltVariant::Mmlt,
+                self.variant == MltVariant::Rjmlt,
+            ),
         }
     }
 
@@ -349,9 +352,10 @@ impl Mlt {
         for d in 0..self.depth_count() {
             let (mut sum, mut n, mut iterations) = (0.0, 0, 0);
             for slot in slots {
-                sum += slot.large_steps[d].0;
-                n += slot.large_steps[d].1;
-                iterations += slot.iterations[d];
+                let depth = &slot.stats.per_depth[d];
+                sum += depth.large_step_target_sum;
+                n += depth.large_steps;
+                iterations += depth.iterations;
             }
             let b_d = if self.settings.progressive_b {
                 (bootstrap.sums[d] + sum) / (bootstrap.paths + n) as f64
@@ -371,7 +375,8 @@ impl Mlt {
     }
 
     /// One Metropolis iteration of sub-chain `d`: a large or small step of the primary samples
-    /// (all methods), or for RJMLT, with probability `jump_probability`, a technique jump.
+    /// (all methods), or for RJMLT, with probability `jump_probability`, a technique jump. Returns
+    /// the proposal's target if it was a large step (a uniform sample, for b_d).
     fn iterate(
         &self,
         ctx: &BdptContext,
@@ -380,7 +385,10 @@ impl Mlt {
         rng: &mut Rng,
         slot: &mut SlotState,
         counters: &mut Counters,
-    ) {
+    ) -> Option<f32> {
+        if !(chain.current.target > 0.0) {
+            return Some(self.search(ctx, d, chain, slot, counters));
+        }
         let (large, jump) = if self.variant == MltVariant::Rjmlt {
             let u = rng.uniform() as f64;
             let large = u < self.settings.large_step_probability;
@@ -395,9 +403,9 @@ impl Mlt {
                 None => {
                     // The jump chose the current technique: the state stays, and it is splatted.
                     self.splat(d, &chain.current, 1.0, slot);
-                    slot.iterations[d] += 1;
+                    slot.stats.per_depth[d].iterations += 1;
                     self.count_technique_state(d, &chain.current, slot);
-                    return;
+                    return None;
                 }
             }
         } else {
@@ -420,38 +428,44 @@ impl Mlt {
             (proposal, a)
         };
         counters.samples += 1;
-        if large {
-            slot.large_steps[d].0 += proposal.target as f64;
-            slot.large_steps[d].1 += 1;
-        }
-        if proposal.target > 0.0 {
-            slot.nonzero_proposals += 1;
-        }
-        slot.paths_evaluated += proposal.paths_evaluated as u64;
-        slot.paths_nonzero += proposal.paths_nonzero as u64;
+        let large_step_target = large.then_some(proposal.target);
         self.splat(d, &proposal, a, slot);
         if a < 1.0 {
             self.splat(d, &chain.current, 1.0 - a, slot);
         }
-        slot.iterations[d] += 1;
         let accepted = rng.uniform() < a;
+        let kind = if jump {
+            MoveKind::Jump
+        } else if large {
+            MoveKind::Large
+        } else {
+            MoveKind::Small
+        };
+        if let Some(moves) = slot.stats.moves.get_mut(kind) {
+            moves.proposals += 1;
+            moves.accepted += accepted as u64;
+            moves.nonzero_proposals += (proposal.target > 0.0) as u64;
+            moves.paths_evaluated += proposal.paths_evaluated as u64;
+            moves.paths_nonzero += proposal.paths_nonzero as u64;
+        }
         let tally = |count: &mut AcceptanceCount| {
             count.proposed += 1;
             if accepted {
                 count.accepted += 1.0;
             }
         };
-        tally(&mut slot.acceptance[d]);
-        if jump {
-            tally(&mut slot.jumps[d]);
-        } else {
-            tally(&mut slot.step_acceptance[if large { 0 } else { 1 }]);
-            if !large {
-                tally(&mut slot.small_steps[d]);
-                if self.variant == MltVariant::Mmlt && proposal.s != chain.current.s {
-                    tally(&mut slot.technique_changes[d]);
+        let depth = &mut slot.stats.per_depth[d];
+        depth.iterations += 1;
+        tally(&mut depth.acceptance);
+        match kind {
+            MoveKind::Jump => depth.jumps.as_mut().into_iter().for_each(tally),
+            MoveKind::Small => {
+                tally(&mut depth.small_steps);
+                if proposal.s != chain.current.s {
+                    depth.technique_change.as_mut().into_iter().for_each(tally);
                 }
             }
+            MoveKind::Large => {}
         }
         if accepted {
             chain.sampler.accept();
@@ -460,6 +474,87 @@ impl Mlt {
             chain.sampler.reject();
         }
         self.count_technique_state(d, &chain.current, slot);
+        large_step_target
+    }
+
+    /// A sub-chain with no non-zero state yet (its depth's bootstrap found no light) takes a large
+    /// step: a uniform sample of (ū, u_t) (RJMLT: of (s, ū)), which counts in b_d like every
+    /// large step. The first non-zero one becomes the chain's state. Until then nothing is
+    /// splatted and no iteration of the depth is counted, so the depth's image (film ÷ iterations)
+    /// is an average over states of chains that have found light; what remains is the start-up
+    /// bias of a chain started from a uniform sample restricted to f̂ > 0 instead of ∝ f̂, which
+    /// vanishes as the chain runs (as does that of the bootstrap's finite resampling), and the
+    /// finite-sample effect of stopping each chain's search at its first success on b_d, which
+    /// the chain's later large steps dilute: the estimator is consistent.
+    fn search(
+        &self,
+        ctx: &BdptContext,
+        d: usize,
+        chain: &mut SubChain,
+        slot: &mut SlotState,
+        counters: &mut Counters,
+    ) -> f32 {
+        chain.sampler.start_iteration_with(true);
+        let proposal = self.evaluate(ctx, d, &mut chain.sampler, None, slot, counters);
+        counters.samples += 1;
+        slot.stats.per_depth[d].search_steps += 1;
+        let target = proposal.target;
+        if target > 0.0 {
+            slot.stats.per_depth[d].searches_found += 1;
+            chain.sampler.accept();
+            chain.current = proposal;
+        } else {
+            chain.sampler.reject();
+        }
+        target
+    }
+
+    /// The depth choice of pass `pass`: p(d) = (1 − ε)·b̂_d/Σb̂ + ε/D (`DEPTH_CHOICE_FLOOR`), with
+    /// b̂_d the bootstrap's estimate refined, under progressive b, by every large step of the
+    /// passes before (the MMLT paper's progressive b_k, Sec. 4 "Initialization", applied to the
+    /// choice as well as to the normalisation). Depths that cannot be recovered (bootstrap b_d = 0
+    /// without progressive b: their image is scaled by b_d = 0) are never chosen.
+    fn depth_choice(&self, bootstrap: &Bootstrap, pooled: &PooledLargeSteps, pass: u64) -> Arc<Distribution1D> {
+        let mut cached = pooled.choice.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some((p, choice)) = cached.as_ref() {
+            if *p == pass {
+                return choice.clone();
+            }
+        }
+        let depths = self.depth_count();
+        let mut large_steps = vec![(0.0f64, 0u64); depths];
+        if pass > 0 {
+            for unit in &pooled.written[((pass - 1) % 2) as usize] {
+                let unit = unit.lock().unwrap_or_else(PoisonError::into_inner);
+                for (total, own) in large_steps.iter_mut().zip(unit.iter()) {
+                    total.0 += own.0;
+                    total.1 += own.1;
+                }
+            }
+        }
+        let b: Vec<f64> = (0..depths)
+            .map(|d| {
+                if self.settings.progressive_b {
+                    let (sum, n) = large_steps[d];
+                    (bootstrap.sums[d] + sum) / (bootstrap.paths + n) as f64
+                } else {
+                    bootstrap.sums[d] / bootstrap.paths as f64
+                }
+            })
+            .collect();
+        let recoverable = |d: usize| self.settings.progressive_b || bootstrap.sums[d] > 0.0;
+        let recoverable_depths = (0..depths).filter(|&d| recoverable(d)).count().max(1) as f64;
+        let total: f64 = b.iter().sum();
+        let weights: Vec<f32> = (0..depths)
+            .map(|d| {
+                let share = if total > 0.0 { b[d] / total } else { 0.0 };
+                let floor = if recoverable(d) { DEPTH_CHOICE_FLOOR / recoverable_depths } else { 0.0 };
+                ((1.0 - DEPTH_CHOICE_FLOOR) * share + floor) as f32
+            })
+            .collect();
+        let choice = Arc::new(Distribution1D::new(&weights));
+        *cached = Some((pass, choice.clone()));
+        choice
     }
 
     /// Splats `state`'s contributions with weight `w` / target (Veach's expected values).
@@ -478,7 +573,11 @@ impl Mlt {
         if self.variant == MltVariant::Pssmlt {
             return;
         }
-        slot.technique_counts[d][current.s] += 1;
+        if let Some(count) =
+            slot.stats.per_depth[d].technique_state_counts.as_mut().and_then(|counts| counts.get_mut(current.s))
+        {
+            count.iterations += 1;
+        }
         if let (Some(films), Some(sp)) = (slot.count_films.as_mut(), current.splats.first()) {
             films[d][current.s].splat(sp.raster, Rgb::ONE);
         }
@@ -521,16 +620,17 @@ impl Mlt {
             }
         }
         if j == i {
-            slot.jumps_to_same_technique += 1;
+            slot.stats.jumps.iter_mut().for_each(|j| j.to_same_technique += 1);
             return None;
         }
         chain.sampler.start_iteration_with(false);
-        let rejected = PathState { s: j, ..PathState::default() };
+        // A failed jump still proposed one technique path (for the effective path ratio).
+        let rejected = PathState { s: j, paths_evaluated: 1, ..PathState::default() };
         let inverse = match invert_technique(ctx.scene, &current.path, j, rng) {
             Ok(inverse) => inverse,
             Err(failure) => {
                 let k = InversionFailure::ALL.iter().position(|f| *f == failure).unwrap_or(0);
-                slot.inversion_failures[k] += 1;
+                slot.stats.jumps.iter_mut().for_each(|j| j.inversion_failures[k] += 1);
                 return Some((rejected, 0.0));
             }
         };
@@ -543,7 +643,7 @@ impl Mlt {
         }
         let proposal = self.evaluate(ctx, d, &mut chain.sampler, Some(j), slot, counters);
         if !(proposal.target > 0.0) || !same_path(&proposal.path, &current.path) {
-            slot.path_mismatches += 1;
+            slot.stats.jumps.iter_mut().for_each(|j| j.path_mismatches += 1);
             return Some((rejected, 0.0));
         }
         // Eq. 38 with Eq. 43. By Eq. 44 each step's |J[g⁻¹]| / T(t) is that step's full (mixture)
@@ -568,9 +668,9 @@ impl Mlt {
         };
         let r = jump_acceptance(&current_side, &proposal_side);
         let deviation = (r - 1.0).abs();
-        slot.jump_ratio_max_deviation = slot.jump_ratio_max_deviation.max(deviation);
-        if deviation > 1e-3 {
-            slot.jump_ratio_off += 1;
+        if let Some(jumps) = slot.stats.jumps.as_mut() {
+            jumps.ratio_max_deviation = jumps.ratio_max_deviation.max(deviation);
+            jumps.ratio_off += (deviation > 1e-3) as u64;
         }
         Some((proposal, r.min(1.0) as f32))
     }
@@ -683,7 +783,19 @@ impl Integrator for Mlt {
                 extra_stats: serde_json::json!({ "warnings": warnings, "b": b_boot, "bootstrap_paths_per_depth": n_boot }),
             });
         }
-        let depth_choice = Distribution1D::new(&b_boot.iter().map(|&b| b as f32).collect::<Vec<_>>());
+        // Without progressive b a depth's b_d stays the bootstrap's, so a depth it missed cannot
+        // be recovered and is not chosen (`depth_choice`); a warning says so.
+        let recoverable = |d: usize| b_boot[d] > 0.0 || self.settings.progressive_b;
+        if depths > 1 && !self.settings.progressive_b {
+            let missed: Vec<usize> = (0..depths).filter(|&d| b_boot[d] == 0.0).collect();
+            if !missed.is_empty() {
+                warnings.push(format!(
+                    "no bootstrap path ({n_boot} per depth) found light at depth(s) {missed:?}, and without \
+                     progressive_b their b_d stays 0: their light is missing from the image. Raise `bootstrap` \
+                     or enable `progressive_b`."
+                ));
+            }
+        }
         let boot_dists: Vec<Option<Distribution1D>> =
             boot_targets.iter().zip(&b_boot).map(|(t, &b)| (b > 0.0).then(|| Distribution1D::new(t))).collect();
 
@@ -697,16 +809,22 @@ impl Integrator for Mlt {
                 let mut rng = Rng::new(job.seed ^ CHAIN_SEED_SALT, c);
                 let subchains = (0..depths)
                     .map(|d| {
-                        let dist = boot_dists[d].as_ref()?;
+                        let own_stream = Rng::new(job.seed ^ SUBCHAIN_SEED_SALT, c * depths as u64 + d as u64);
+                        let Some(dist) = boot_dists[d].as_ref() else {
+                            // A depth the bootstrap missed: the chain searches from a zero state.
+                            let sampler = PssSampler::new(own_stream, self.mutation(), STREAM_COUNT);
+                            return recoverable(d).then(|| SubChain { sampler, current: PathState::default() });
+                        };
                         let (i, _, _) = dist.sample_discrete(rng.uniform());
                         let mut sampler = self.bootstrap_sampler(job.seed, d, i as u64);
                         sampler.start_iteration_with(true);
                         let current = self.evaluate(&ctx, d, &mut sampler, None, &mut init_slot, &mut init_counters);
                         sampler.accept();
+                        sampler.reseed(own_stream);
                         Some(SubChain { sampler, current })
                     })
                     .collect();
-                ChainUnit { rng, subchains }
+                ChainUnit { rng, large_steps: vec![(0.0, 0); depths], subchains }
             })
             .collect();
 
@@ -728,26 +846,41 @@ impl Integrator for Mlt {
             let states: Vec<&SlotState> = at.slots.iter().map(|slot| &slot.state).collect();
             self.normalised_image(&states, &bootstrap, width, height).0
         };
+        let unit_totals = || (0..self.settings.chains).map(|_| Mutex::new(vec![(0.0, 0); depths])).collect();
+        let pooled = PooledLargeSteps { written: [unit_totals(), unit_totals()], choice: Mutex::new(None) };
         let out = driver.run(
             units,
             passes,
             progress,
             |_| self.new_slot(width, height),
-            |_, unit, slot| {
+            |item, unit, slot| {
                 let state = &mut slot.state;
                 let counters = &mut slot.counters;
+                let depth_choice = (depths > 1).then(|| self.depth_choice(&bootstrap, &pooled, item.pass));
                 for _ in 0..segment {
-                    let d = if depths == 1 { 0 } else { depth_choice.sample_discrete(unit.rng.uniform()).0 };
-                    if let Some(chain) = unit.subchains[d].as_mut() {
-                        self.iterate(&ctx, d, chain, &mut unit.rng, state, counters);
+                    let d = depth_choice.as_ref().map_or(0, |c| c.sample_discrete(unit.rng.uniform()).0);
+                    let Some(chain) = unit.subchains[d].as_mut() else { continue };
+                    if let Some(target) = self.iterate(&ctx, d, chain, &mut unit.rng, state, counters) {
+                        let depth = &mut state.stats.per_depth[d];
+                        depth.large_step_target_sum += target as f64;
+                        depth.large_steps += 1;
+                        unit.large_steps[d].0 += target as f64;
+                        unit.large_steps[d].1 += 1;
                     }
                 }
+                if depths > 1 {
+                    let mut written = pooled.written[(item.pass % 2) as usize][item.unit]
+                        .lock()
+                        .unwrap_or_else(PoisonError::into_inner);
+                    written.clone_from(&unit.large_steps);
+                }
                 if slot.index == 0 {
-                    let acc: AcceptanceCount = state.acceptance.iter().fold(AcceptanceCount::default(), |mut a, b| {
-                        a.merge(b);
-                        a
-                    });
-                    progress.message(&format!("acceptance {:.1}%", 100.0 * acc.rate()));
+                    let moves = &state.stats.moves;
+                    let (proposed, accepted) = [&moves.large, &moves.small]
+                        .into_iter()
+                        .chain(moves.jump.as_ref())
+                        .fold((0, 0), |(p, a), m| (p + m.proposals, a + m.accepted));
+                    progress.message(&format!("acceptance {:.1}%", 100.0 * accepted as f64 / proposed.max(1) as f64));
                 }
                 segment
             },
@@ -760,37 +893,15 @@ impl Integrator for Mlt {
             return Err(RenderError::Settings("no worker ran".into()));
         };
         for s in slots {
-            for d in 0..depths {
-                merged.films[d].merge(&s.films[d]);
-                merged.iterations[d] += s.iterations[d];
-                merged.acceptance[d].merge(&s.acceptance[d]);
-                merged.small_steps[d].merge(&s.small_steps[d]);
-                merged.technique_changes[d].merge(&s.technique_changes[d]);
-                merged.jumps[d].merge(&s.jumps[d]);
-                merged.large_steps[d].0 += s.large_steps[d].0;
-                merged.large_steps[d].1 += s.large_steps[d].1;
-                for (a, b) in merged.technique_counts[d].iter_mut().zip(&s.technique_counts[d]) {
-                    *a += b;
-                }
-                if let (Some(m), Some(o)) = (merged.count_films.as_mut(), s.count_films.as_ref()) {
-                    for (a, b) in m[d].iter_mut().zip(&o[d]) {
-                        a.merge(b);
-                    }
-                }
-            }
-            merged.nonzero_proposals += s.nonzero_proposals;
-            merged.paths_evaluated += s.paths_evaluated;
-            merged.paths_nonzero += s.paths_nonzero;
-            merged.jumps_to_same_technique += s.jumps_to_same_technique;
-            for (a, b) in merged.inversion_failures.iter_mut().zip(&s.inversion_failures) {
-                *a += b;
-            }
-            merged.path_mismatches += s.path_mismatches;
-            merged.jump_ratio_off += s.jump_ratio_off;
-            merged.jump_ratio_max_deviation = merged.jump_ratio_max_deviation.max(s.jump_ratio_max_deviation);
-            for (a, b) in merged.step_acceptance.iter_mut().zip(&s.step_acceptance) {
+            for (a, b) in merged.films.iter_mut().zip(&s.films) {
                 a.merge(b);
             }
+            if let (Some(m), Some(o)) = (merged.count_films.as_mut(), s.count_films.as_ref()) {
+                for (a, b) in m.iter_mut().flatten().zip(o.iter().flatten()) {
+                    a.merge(b);
+                }
+            }
+            merged.stats.merge(&s.stats);
         }
         let (image, b_final) = self.normalised_image(&[&merged], &bootstrap, width, height);
 
@@ -802,79 +913,20 @@ impl Integrator for Mlt {
                 }
             }
         }
-        let proposals: u64 = merged.acceptance.iter().map(|a| a.proposed).sum();
-        let accepted: f64 = merged.acceptance.iter().map(|a| a.accepted).sum();
-        let ratio = |a: u64, b: u64| if b > 0 { a as f64 / b as f64 } else { 0.0 };
-        // The paper's effective path ratio counts light-path samples: a PSSMLT proposal evaluates
-        // every technique (s, t) of its subpaths, an MMLT or RJMLT proposal one (see docs/mlt.md).
-        let effective_path_ratio = ratio(merged.paths_nonzero, merged.paths_evaluated);
-        let nonzero_proposal_ratio = ratio(merged.nonzero_proposals, proposals);
-        let rate_or_null = |a: &AcceptanceCount| {
-            if a.proposed > 0 {
-                serde_json::json!(a.rate())
-            } else {
-                serde_json::Value::Null
-            }
-        };
-        let per_depth: Vec<serde_json::Value> = (0..depths)
-            .map(|d| {
-                serde_json::json!({
-                    "depth": if depths == 1 { serde_json::Value::Null } else { d.into() },
-                    "b_bootstrap": b_boot[d],
-                    "b": b_final[d],
-                    "iterations": merged.iterations[d],
-                    "acceptance": merged.acceptance[d].rate(),
-                    "small_step_acceptance": rate_or_null(&merged.small_steps[d]),
-                    "technique_change": if self.variant == MltVariant::Mmlt {
-                        serde_json::json!({"proposals": merged.technique_changes[d].proposed,
-                                           "acceptance": rate_or_null(&merged.technique_changes[d])})
-                    } else {
-                        serde_json::Value::Null
-                    },
-                    "jumps": if self.variant == MltVariant::Rjmlt {
-                        serde_json::json!({"proposals": merged.jumps[d].proposed,
-                                           "acceptance": rate_or_null(&merged.jumps[d])})
-                    } else {
-                        serde_json::Value::Null
-                    },
-                    "technique_state_counts": if self.variant != MltVariant::Pssmlt {
-                        serde_json::json!(merged.technique_counts[d]
-                            .iter()
-                            .enumerate()
-                            .map(|(s, c)| serde_json::json!({"s": s, "t": d + 2 - s, "iterations": c}))
-                            .collect::<Vec<_>>())
-                    } else {
-                        serde_json::Value::Null
-                    },
-                })
-            })
-            .collect();
+        let mut stats = merged.stats;
+        stats.passes = out.passes;
+        stats.segment_length = segment;
+        stats.bootstrap_paths_per_depth = n_boot;
+        stats.bootstrap_seconds = boot_elapsed.as_secs_f64();
+        stats.warnings = warnings;
+        stats.finish(pixels, &b_boot, &b_final);
         let mut counters = out.counters;
-        counters.strategies.insert("large_step".to_string(), merged.step_acceptance[0]);
-        counters.strategies.insert("small_step".to_string(), merged.step_acceptance[1]);
-        let jump_stats = if self.variant == MltVariant::Rjmlt {
-            let mut all = AcceptanceCount::default();
-            for j in &merged.jumps {
-                all.merge(j);
-            }
-            counters.strategies.insert("technique_jump".to_string(), all);
-            let failures: serde_json::Map<String, serde_json::Value> = InversionFailure::ALL
-                .iter()
-                .zip(&merged.inversion_failures)
-                .map(|(f, &c)| (f.name().to_string(), c.into()))
-                .collect();
-            serde_json::json!({
-                "proposals": all.proposed,
-                "acceptance": rate_or_null(&all),
-                "to_same_technique": merged.jumps_to_same_technique,
-                "inversion_failures": failures,
-                "path_mismatches": merged.path_mismatches,
-                "ratio_off_by_more_than_1e-3": merged.jump_ratio_off,
-                "ratio_max_deviation": merged.jump_ratio_max_deviation,
-            })
-        } else {
-            serde_json::Value::Null
-        };
+        let strategy = |m: &MoveStats| AcceptanceCount { proposed: m.proposals, accepted: m.accepted as f64 };
+        counters.strategies.insert("large_step".to_string(), strategy(&stats.moves.large));
+        counters.strategies.insert("small_step".to_string(), strategy(&stats.moves.small));
+        if let Some(jump) = stats.moves.jump.as_ref() {
+            counters.strategies.insert("technique_jump".to_string(), strategy(jump));
+        }
         counters.merge(&boot_counters);
         counters.merge(&init_counters);
         Ok(RenderOutput {
@@ -882,21 +934,7 @@ impl Integrator for Mlt {
             layers,
             counters,
             wall_time: render_start.elapsed(),
-            extra_stats: serde_json::json!({
-                "mutations": proposals,
-                "mutations_per_pixel": proposals as f64 / pixels as f64,
-                "passes": out.passes,
-                "segment_length": segment,
-                "bootstrap_paths_per_depth": n_boot,
-                "bootstrap_seconds": boot_elapsed.as_secs_f64(),
-                "acceptance": if proposals > 0 { accepted / proposals as f64 } else { 0.0 },
-                "effective_path_ratio": effective_path_ratio,
-                "nonzero_proposal_ratio": nonzero_proposal_ratio,
-                "technique_paths_evaluated": merged.paths_evaluated,
-                "jumps": jump_stats,
-                "per_depth": per_depth,
-                "warnings": warnings,
-            }),
+            extra_stats: serde_json::to_value(&stats).unwrap_or(serde_json::Value::Null),
         })
     }
 }

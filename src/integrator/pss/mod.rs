@@ -5,6 +5,7 @@ pub mod jump;
 pub mod mlt;
 pub mod sampler;
 pub mod settings;
+pub mod stats;
 pub mod validation_1d;
 
-pub use sampler::{MutationSettings, PssSampler};
+pub use sampler::{MutationSettings, PssSampler, SmallStep};

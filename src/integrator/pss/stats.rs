@@ -1,0 +1,335 @@
+//! The statistics of the Markov chain integrators (`pssmlt`, `mmlt`, `rjmlt`), typed: every worker
+//! slot accumulates one [`MltStats`], the slots are combined by [`MltStats::merge`] in slot order,
+//! [`MltStats::finish`] derives the rates, and serde writes the result as the render's
+//! `integrator_stats` JSON (tests/mlt.rs, scripts/bench-mlt.sh and scripts/fig4_table.py read it by
+//! these field names). A new statistic is one field here, plus its line in `merge`.
+
+use serde::{Serialize, Serializer};
+
+use super::inverse::InversionFailure;
+use crate::stats::AcceptanceCount;
+
+/// The kind of a proposal, for the per-move-type statistics.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MoveKind {
+    Large,
+    Small,
+    Jump,
+}
+
+/// Proposals of one move type (large step, small step, technique jump), with the same measures for
+/// all three integrators so that they are comparable.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct MoveStats {
+    /// Proposals made (a jump that chose the current technique proposes nothing and is counted in
+    /// `JumpStats::to_same_technique` instead).
+    pub proposals: u64,
+    /// Proposals accepted (the Metropolis coin, not the expected-value weight).
+    pub accepted: u64,
+    /// Proposals whose target (luminance of the state's contribution) is non-zero.
+    pub nonzero_proposals: u64,
+    /// Technique paths the proposals evaluated: PSSMLT evaluates every (s, t) connection of its
+    /// two subpaths, MMLT and RJMLT one technique, a technique jump one (also when its inverse
+    /// fails or regenerates another path: that proposal is one path that contributed nothing).
+    pub paths_evaluated: u64,
+    /// Of those, the paths with a non-zero contribution.
+    pub paths_nonzero: u64,
+    /// Derived by `finish`: accepted / proposals (null without proposals).
+    pub acceptance: Option<f64>,
+    /// Derived by `finish`: the effective path ratio, paths_nonzero / paths_evaluated (the share of
+    /// evaluated technique paths that carried light; null without proposals).
+    pub effective_path_ratio: Option<f64>,
+}
+
+impl MoveStats {
+    pub fn merge(&mut self, o: &MoveStats) {
+        self.proposals += o.proposals;
+        self.accepted += o.accepted;
+        self.nonzero_proposals += o.nonzero_proposals;
+        self.paths_evaluated += o.paths_evaluated;
+        self.paths_nonzero += o.paths_nonzero;
+    }
+
+    fn finish(&mut self) {
+        self.acceptance = ratio(self.accepted, self.proposals);
+        self.effective_path_ratio = ratio(self.paths_nonzero, self.paths_evaluated);
+    }
+}
+
+/// Per move type. `jump` is null except for RJMLT.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct MoveTypes {
+    pub large: MoveStats,
+    pub small: MoveStats,
+    pub jump: Option<MoveStats>,
+}
+
+impl MoveTypes {
+    pub fn get_mut(&mut self, kind: MoveKind) -> Option<&mut MoveStats> {
+        match kind {
+            MoveKind::Large => Some(&mut self.large),
+            MoveKind::Small => Some(&mut self.small),
+            MoveKind::Jump => self.jump.as_mut(),
+        }
+    }
+
+    fn all(&self) -> impl Iterator<Item = &MoveStats> {
+        [&self.large, &self.small].into_iter().chain(self.jump.as_ref())
+    }
+}
+
+/// Iterations with technique (s, t) as the chain's state (MMLT paper, Fig. 5).
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct TechniqueCount {
+    pub s: usize,
+    pub t: usize,
+    pub iterations: u64,
+}
+
+/// One path depth's chains (PSSMLT: the one chain over all depths).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct DepthStats {
+    /// Scattering events; null for PSSMLT.
+    pub depth: Option<usize>,
+    /// Set by `finish`: b_d from the bootstrap alone, and the b_d the image was normalised with.
+    pub b_bootstrap: f64,
+    pub b: f64,
+    /// Iterations of the depth's chains (what its film is divided by).
+    pub iterations: u64,
+    /// Large steps of sub-chains still searching for their first non-zero state (a depth the
+    /// bootstrap missed; not iterations), and how many searches found one.
+    pub search_steps: u64,
+    pub searches_found: u64,
+    /// Large steps (searches included) and the sum of their targets: the render's uniform
+    /// samples of the depth, which refine b_d under progressive b.
+    pub large_steps: u64,
+    pub large_step_target_sum: f64,
+    /// All proposals of the depth; serialised as the acceptance rate.
+    #[serde(serialize_with = "rate_or_zero")]
+    pub acceptance: AcceptanceCount,
+    /// Small steps (RJMLT paper Fig. 4 (a)); serialised as the rate, null without any.
+    #[serde(rename = "small_step_acceptance", serialize_with = "rate_or_null")]
+    pub small_steps: AcceptanceCount,
+    /// MMLT: small steps whose proposal has another technique (Fig. 4 (b)); null otherwise.
+    #[serde(serialize_with = "proposals_and_rate")]
+    pub technique_change: Option<AcceptanceCount>,
+    /// RJMLT: technique jumps to another technique (Fig. 4 (c)); null otherwise.
+    #[serde(serialize_with = "proposals_and_rate")]
+    pub jumps: Option<AcceptanceCount>,
+    /// MMLT, RJMLT: per technique s, iterations with it as the state; null for PSSMLT.
+    pub technique_state_counts: Option<Vec<TechniqueCount>>,
+}
+
+impl DepthStats {
+    fn merge(&mut self, o: &DepthStats) {
+        self.iterations += o.iterations;
+        self.search_steps += o.search_steps;
+        self.searches_found += o.searches_found;
+        self.large_steps += o.large_steps;
+        self.large_step_target_sum += o.large_step_target_sum;
+        self.acceptance.merge(&o.acceptance);
+        self.small_steps.merge(&o.small_steps);
+        merge_option(&mut self.technique_change, &o.technique_change, AcceptanceCount::merge);
+        merge_option(&mut self.jumps, &o.jumps, AcceptanceCount::merge);
+        merge_option(&mut self.technique_state_counts, &o.technique_state_counts, |a, b| {
+            for (x, y) in a.iter_mut().zip(b) {
+                x.iterations += y.iterations;
+            }
+        });
+    }
+}
+
+/// RJMLT's technique jumps over all depths.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct JumpStats {
+    /// Derived by `finish` from the per-depth jumps: jumps to another technique and their
+    /// acceptance (null without any).
+    pub proposals: u64,
+    pub acceptance: Option<f64>,
+    /// Jumps that chose the current technique (nothing changes).
+    pub to_same_technique: u64,
+    /// Inverses that failed, by `InversionFailure::ALL` order; serialised by failure name.
+    #[serde(serialize_with = "failures_by_name")]
+    pub inversion_failures: [u64; 5],
+    /// Inverses whose regenerated path is not the current one.
+    pub path_mismatches: u64,
+    /// Valid jumps whose ratio r of Eq. 38/43 was off 1 by more than 1e-3, and the largest |r − 1|.
+    #[serde(rename = "ratio_off_by_more_than_1e-3")]
+    pub ratio_off: u64,
+    pub ratio_max_deviation: f64,
+}
+
+impl JumpStats {
+    fn merge(&mut self, o: &JumpStats) {
+        self.to_same_technique += o.to_same_technique;
+        for (a, b) in self.inversion_failures.iter_mut().zip(&o.inversion_failures) {
+            *a += b;
+        }
+        self.path_mismatches += o.path_mismatches;
+        self.ratio_off += o.ratio_off;
+        self.ratio_max_deviation = self.ratio_max_deviation.max(o.ratio_max_deviation);
+    }
+}
+
+/// Everything a PSSMLT, MMLT or RJMLT render reports besides the image and the shared counters.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct MltStats {
+    /// Derived by `finish`: proposals over all depths and move types, and per pixel.
+    pub mutations: u64,
+    pub mutations_per_pixel: f64,
+    /// Set by the render: driver passes, iterations per chain and pass, uniform bootstrap samples
+    /// per depth and the bootstrap's wall time.
+    pub passes: u64,
+    pub segment_length: u64,
+    pub bootstrap_paths_per_depth: u64,
+    pub bootstrap_seconds: f64,
+    /// Derived by `finish`, over all proposals: acceptance, effective path ratio (non-zero
+    /// technique paths / evaluated; see `MoveStats`), share of proposals with a non-zero target,
+    /// and technique paths evaluated.
+    pub acceptance: f64,
+    pub effective_path_ratio: f64,
+    pub nonzero_proposal_ratio: f64,
+    pub technique_paths_evaluated: u64,
+    /// Per move type: the same measures for the three integrators.
+    pub moves: MoveTypes,
+    /// RJMLT only.
+    pub jumps: Option<JumpStats>,
+    pub per_depth: Vec<DepthStats>,
+    pub warnings: Vec<String>,
+}
+
+impl MltStats {
+    /// Empty statistics with the shape of the method: per-depth entries (with `techniques[d]`
+    /// techniques each when `per_technique`), technique-change counts for MMLT, jump counts for
+    /// RJMLT.
+    pub fn new(techniques: &[usize], per_technique: bool, mmlt: bool, rjmlt: bool) -> MltStats {
+        let depths = techniques.len();
+        let per_depth = techniques
+            .iter()
+            .enumerate()
+            .map(|(d, &n)| DepthStats {
+                depth: (depths > 1).then_some(d),
+                technique_change: mmlt.then(AcceptanceCount::default),
+                jumps: rjmlt.then(AcceptanceCount::default),
+                technique_state_counts: per_technique
+                    .then(|| (0..n).map(|s| TechniqueCount { s, t: d + 2 - s, iterations: 0 }).collect()),
+                ..DepthStats::default()
+            })
+            .collect();
+        MltStats {
+            moves: MoveTypes { jump: rjmlt.then(MoveStats::default), ..MoveTypes::default() },
+            jumps: rjmlt.then(JumpStats::default),
+            per_depth,
+            ..MltStats::default()
+        }
+    }
+
+    /// Adds another slot's counts (the derived and the render-level fields are left alone).
+    pub fn merge(&mut self, o: &MltStats) {
+        for (a, b) in self.per_depth.iter_mut().zip(&o.per_depth) {
+            a.merge(b);
+        }
+        self.moves.large.merge(&o.moves.large);
+        self.moves.small.merge(&o.moves.small);
+        merge_option(&mut self.moves.jump, &o.moves.jump, MoveStats::merge);
+        merge_option(&mut self.jumps, &o.jumps, JumpStats::merge);
+    }
+
+    /// Derives the rates and totals from the merged counts, with the b_d of the image.
+    pub fn finish(&mut self, pixels: u64, b_bootstrap: &[f64], b: &[f64]) {
+        for (d, depth) in self.per_depth.iter_mut().enumerate() {
+            depth.b_bootstrap = b_bootstrap[d];
+            depth.b = b[d];
+        }
+        self.moves.large.finish();
+        self.moves.small.finish();
+        if let Some(jump) = self.moves.jump.as_mut() {
+            jump.finish();
+        }
+        let mut all = MoveStats::default();
+        for m in self.moves.all() {
+            all.merge(m);
+        }
+        self.mutations = all.proposals;
+        self.mutations_per_pixel = all.proposals as f64 / pixels.max(1) as f64;
+        self.acceptance = ratio(all.accepted, all.proposals).unwrap_or(0.0);
+        self.effective_path_ratio = ratio(all.paths_nonzero, all.paths_evaluated).unwrap_or(0.0);
+        self.nonzero_proposal_ratio = ratio(all.nonzero_proposals, all.proposals).unwrap_or(0.0);
+        self.technique_paths_evaluated = all.paths_evaluated;
+        if let Some(jumps) = self.jumps.as_mut() {
+            let mut total = AcceptanceCount::default();
+            for j in self.per_depth.iter().filter_map(|d| d.jumps.as_ref()) {
+                total.merge(j);
+            }
+            jumps.proposals = total.proposed;
+            jumps.acceptance = (total.proposed > 0).then(|| total.rate());
+        }
+    }
+}
+
+fn ratio(a: u64, b: u64) -> Option<f64> {
+    (b > 0).then(|| a as f64 / b as f64)
+}
+
+fn merge_option<T>(a: &mut Option<T>, b: &Option<T>, merge: impl Fn(&mut T, &T)) {
+    if let (Some(a), Some(b)) = (a.as_mut(), b.as_ref()) {
+        merge(a, b);
+    }
+}
+
+fn rate_or_zero<S: Serializer>(a: &AcceptanceCount, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_f64(a.rate())
+}
+
+fn rate_or_null<S: Serializer>(a: &AcceptanceCount, s: S) -> Result<S::Ok, S::Error> {
+    (a.proposed > 0).then(|| a.rate()).serialize(s)
+}
+
+fn proposals_and_rate<S: Serializer>(a: &Option<AcceptanceCount>, s: S) -> Result<S::Ok, S::Error> {
+    #[derive(Serialize)]
+    struct ProposalsAndRate {
+        proposals: u64,
+        acceptance: Option<f64>,
+    }
+    a.map(|a| ProposalsAndRate { proposals: a.proposed, acceptance: (a.proposed > 0).then(|| a.rate()) }).serialize(s)
+}
+
+fn failures_by_name<S: Serializer>(counts: &[u64; 5], s: S) -> Result<S::Ok, S::Error> {
+    s.collect_map(InversionFailure::ALL.iter().map(|f| f.name()).zip(counts))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The JSON keys and shape the tests and scripts read, and a merge that adds counts.
+    #[test]
+    fn merged_statistics_serialise_with_the_keys_the_readers_use() {
+        let mut a = MltStats::new(&[1, 3], true, false, true);
+        a.per_depth[1].iterations = 3;
+        a.per_depth[1].jumps = Some(AcceptanceCount { proposed: 4, accepted: 2.0 });
+        a.moves.small =
+            MoveStats { proposals: 10, accepted: 5, paths_evaluated: 10, paths_nonzero: 8, ..MoveStats::default() };
+        let mut b = a.clone();
+        if let Some(j) = b.jumps.as_mut() {
+            j.ratio_max_deviation = 0.5;
+        }
+        a.merge(&b);
+        a.finish(4, &[0.0, 1.0], &[0.5, 2.0]);
+        let json = serde_json::to_value(&a).expect("serialises");
+        assert_eq!(json["per_depth"][1]["iterations"], 6);
+        assert_eq!(json["per_depth"][1]["b"], 2.0);
+        assert_eq!(json["per_depth"][1]["jumps"]["proposals"], 8);
+        assert_eq!(json["per_depth"][0]["small_step_acceptance"], serde_json::Value::Null);
+        assert_eq!(json["per_depth"][0]["technique_change"], serde_json::Value::Null);
+        assert_eq!(json["per_depth"][1]["technique_state_counts"][2]["t"], 1);
+        assert_eq!(json["jumps"]["proposals"], 8);
+        assert_eq!(json["jumps"]["ratio_max_deviation"], 0.5);
+        assert!(json["jumps"]["inversion_failures"].as_object().is_some_and(|m| m.len() == 5));
+        assert_eq!(json["jumps"]["ratio_off_by_more_than_1e-3"], 0);
+        assert_eq!(json["mutations"], 20);
+        assert_eq!(json["moves"]["small"]["effective_path_ratio"], 0.8);
+        assert_eq!(json["moves"]["large"]["acceptance"], serde_json::Value::Null);
+        assert_eq!(json["effective_path_ratio"], 0.8);
+    }
+}
