@@ -244,8 +244,9 @@ mod tests {
     use crate::integrator::bdpt::path::full_path;
     use crate::integrator::bdpt::{
         evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch, FilmRegion,
-        MisHeuristic, ReplaySampler,
+        MisHeuristic,
     };
+    use crate::sampling::ReplaySampler;
     use crate::spectrum::luminance;
     use crate::stats::Counters;
 

@@ -13,7 +13,7 @@
 //! pending Gaussian perturbations at once, as one Gaussian of variance (n−m)σ² — exact, because a
 //! sum of independent Gaussians is Gaussian and wrapping commutes with addition mod 1.
 
-use crate::sampling::Rng;
+use crate::sampling::{Rng, UniformSource};
 
 /// One coordinate of the state, with what is needed to undo the last mutation.
 #[derive(Clone, Copy, Debug)]
@@ -207,6 +207,14 @@ fn standard_normal(rng: &mut Rng) -> f64 {
     let u1 = 1.0 - rng.uniform_f64(); // in (0, 1]
     let u2 = rng.uniform_f64();
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+/// The chain drives the same subpath code as independent sampling, reading its current stream.
+impl UniformSource for PssSampler {
+    #[inline]
+    fn next_1d(&mut self) -> f32 {
+        PssSampler::next_1d(self)
+    }
 }
 
 #[cfg(test)]
