@@ -346,3 +346,47 @@ fn info_prints_the_scene_summary() {
     let o = plexus(&["info", "missing.toml"], &dir);
     assert_error(&o, 2, &["missing.toml"]);
 }
+
+/// `plexus bench` on a tiny scene (about 0.1 s): the progress lines, the Markdown tables and the
+/// JSON report, with the counts that do not depend on timing (the generated scene, the recorded
+/// rays, every accelerator finding the same hits) as the full run prints them.
+#[test]
+fn bench_prints_progress_tables_and_json() {
+    let dir = temp_dir("bench");
+    let o = plexus(
+        &[
+            "bench",
+            "--triangles",
+            "2000",
+            "--resolution",
+            "8x6",
+            "--repetitions",
+            "1",
+            "--threads",
+            "1",
+            "--json",
+            "bench.json",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let lines: Vec<&str> = out.lines().collect();
+    assert!(lines[0].starts_with("scene: ") && lines[0].contains("triangles in 27 meshes"), "{out}");
+    assert_eq!(lines[1], "rays: 48 camera, 192 bounce (4 bounces per path at most)", "{out}");
+    for accel in ["embree", "bvh", "embree bare loop"] {
+        assert!(out.contains(&format!("{accel:>17} 1 thread(s): build ")), "{out}");
+        assert!(out.contains(&format!("  {accel}: 48 camera hits, 192 bounce hits")), "{out}");
+    }
+    assert!(out.contains("  path tracer 1 thread(s): "), "{out}");
+    assert!(out.contains("| accelerator | threads | build s (CPU s) |"), "{out}");
+    assert!(out.contains("| BVH / Embree | 1 |"), "{out}");
+    assert!(out.contains("| pt, 1 spp | 1 |"), "{out}");
+    assert!(out.trim_end().ends_with("MB."), "{out}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("bench.json")).expect("bench.json written"))
+            .expect("bench.json is JSON");
+    assert_eq!(json["camera_rays"], 48);
+    assert_eq!(json["rows"].as_array().map(Vec::len), Some(3));
+    assert_eq!(json["path_tracer"][0]["threads"], 1);
+}
