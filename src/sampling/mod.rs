@@ -3,6 +3,8 @@
 //! `UniformSource` trait every consumer of explicit uniforms reads from; and the
 //! chi-square harness that tests them all (see docs/sampling.md for the table of routines).
 
+/// Test-only: the chi-square harness (behind the `testing` feature, which the test targets enable).
+#[cfg(any(test, feature = "testing"))]
 pub mod chi2;
 mod distribution;
 mod rng;
