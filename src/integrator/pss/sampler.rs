@@ -191,7 +191,7 @@ impl PssSampler {
             s.value = self.rng.uniform_f64();
         } else {
             let pending = (iteration - s.last_modified) as f64;
-            let normal = standard_normal(&mut self.rng);
+            let normal = self.rng.standard_normal();
             let v = s.value + normal * sigma * pending.sqrt();
             s.value = v - v.floor();
             if s.value >= 1.0 {
@@ -200,13 +200,6 @@ impl PssSampler {
         }
         s.last_modified = iteration;
     }
-}
-
-/// A standard normal deviate (Box–Muller, one of the pair).
-fn standard_normal(rng: &mut Rng) -> f64 {
-    let u1 = 1.0 - rng.uniform_f64(); // in (0, 1]
-    let u2 = rng.uniform_f64();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
 /// The chain drives the same subpath code as independent sampling, reading its current stream.
@@ -324,8 +317,8 @@ mod tests {
                     } else {
                         // A clamped perturbation: biased towards the borders.
                         let old = (s.samples[0].value, s.samples[1].value);
-                        let du = standard_normal(&mut rng) * 0.05;
-                        let dv = standard_normal(&mut rng) * 0.05;
+                        let du = rng.standard_normal() * 0.05;
+                        let dv = rng.standard_normal() * 0.05;
                         let nu = (old.0 + du).clamp(0.0, 1.0 - 1e-9);
                         let nv = (old.1 + dv).clamp(0.0, 1.0 - 1e-9);
                         s.put(0, 0, nu as f32);
