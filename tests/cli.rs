@@ -97,7 +97,7 @@ fn render_fails(dir: &Path, scene: &str, args: &[&str], needles: &[&str]) {
 #[test]
 fn malformed_toml_names_file_and_line() {
     let tmp = temp_dir("malformed");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "bad.toml", "[camera\nposition = [0, 0, 0]\n");
     render_fails(&dir, &scene, &[], &["bad.toml", "line 1"]);
 }
@@ -105,7 +105,7 @@ fn malformed_toml_names_file_and_line() {
 #[test]
 fn unknown_key_names_key_and_expected_keys() {
     let tmp = temp_dir("unknown-key");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let text = good_scene().replace("fov = 45.0", "fov = 45.0\nfocal_length = 3.0");
     let scene = write(&dir, "s.toml", &text);
     render_fails(&dir, &scene, &[], &["s.toml", "focal_length", "fov"]);
@@ -114,7 +114,7 @@ fn unknown_key_names_key_and_expected_keys() {
 #[test]
 fn missing_mesh_file_names_the_mesh() {
     let tmp = temp_dir("missing-mesh");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let text = format!("{}\n[[shapes]]\ntype = \"obj\"\nfile = \"nowhere.obj\"\nmaterial = \"floor\"\n", good_scene());
     let scene = write(&dir, "s.toml", &text);
     render_fails(&dir, &scene, &[], &["s.toml", "shapes[2].file", "nowhere.obj"]);
@@ -123,7 +123,7 @@ fn missing_mesh_file_names_the_mesh() {
 #[test]
 fn nan_vertex_is_rejected() {
     let tmp = temp_dir("nan-vertex");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     write(&dir, "nan.obj", "v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n");
     let text = format!("{}\n[[shapes]]\ntype = \"obj\"\nfile = \"nan.obj\"\nmaterial = \"floor\"\n", good_scene());
     let scene = write(&dir, "s.toml", &text);
@@ -133,7 +133,7 @@ fn nan_vertex_is_rejected() {
 #[test]
 fn out_of_range_index_is_rejected() {
     let tmp = temp_dir("bad-index");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     // PLY, because OBJ readers resolve indices themselves; a face refers to vertex 7 of 3.
     let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
                element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n";
@@ -146,7 +146,7 @@ fn out_of_range_index_is_rejected() {
 #[test]
 fn non_positive_resolution_is_rejected() {
     let tmp = temp_dir("resolution");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     for res in ["[0, 6]", "[8, -2]"] {
         let text = scene_text("type = \"diffuse\"\nreflectance = 0.5", "[1.0, 1.0, 1.0]", res, "");
         let scene = write(&dir, "s.toml", &text);
@@ -157,7 +157,7 @@ fn non_positive_resolution_is_rejected() {
 #[test]
 fn negative_roughness_is_rejected() {
     let tmp = temp_dir("roughness");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let text =
         scene_text("type = \"conductor\"\nroughness = -0.1\ncolour = [0.9, 0.6, 0.3]", "[1.0, 1.0, 1.0]", "[8, 6]", "");
     let scene = write(&dir, "s.toml", &text);
@@ -167,7 +167,7 @@ fn negative_roughness_is_rejected() {
 #[test]
 fn negative_radiance_is_rejected() {
     let tmp = temp_dir("radiance");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let text = scene_text("type = \"diffuse\"\nreflectance = 0.5", "[1.0, -2.0, 1.0]", "[8, 6]", "");
     let scene = write(&dir, "s.toml", &text);
     render_fails(&dir, &scene, &[], &["s.toml", "shapes[1].emission.radiance", "-2"]);
@@ -176,7 +176,7 @@ fn negative_radiance_is_rejected() {
 #[test]
 fn unknown_integrator_lists_the_valid_ones() {
     let tmp = temp_dir("integrator");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     render_fails(&dir, &scene, &["--integrator", "magic"], &["unknown integrator 'magic'", "pt"]);
     let in_file = write(&dir, "t.toml", &format!("{}\n[integrator]\ntype = \"magic\"\n", good_scene()));
@@ -186,7 +186,7 @@ fn unknown_integrator_lists_the_valid_ones() {
 #[test]
 fn unknown_or_ill_typed_setting_is_rejected() {
     let tmp = temp_dir("settings");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     render_fails(&dir, &scene, &["--set", "max_dept=3"], &["max_dept", "max_depth"]);
     render_fails(&dir, &scene, &["--set", "max_depth=lots"], &["max_depth"]);
@@ -198,7 +198,7 @@ fn unknown_or_ill_typed_setting_is_rejected() {
 #[test]
 fn output_in_missing_directory_is_rejected_before_rendering() {
     let tmp = temp_dir("missing-dir");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     let out = dir.join("no/such/dir/out.exr");
     render_fails(&dir, &scene, &["--spp", "1", "--out", &out.to_string_lossy()], &["no/such/dir"]);
@@ -208,7 +208,7 @@ fn output_in_missing_directory_is_rejected_before_rendering() {
 #[test]
 fn unwritable_format_is_rejected_before_rendering() {
     let tmp = temp_dir("format");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     // A valid first output must not be written either: every path is checked up front.
     let good = dir.join("first.exr");
@@ -219,7 +219,7 @@ fn unwritable_format_is_rejected_before_rendering() {
 #[test]
 fn bad_arguments_are_usage_errors() {
     let tmp = temp_dir("usage");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     for args in [
         vec!["render", scene.as_str(), "--spp", "4", "--time", "1"],
@@ -245,7 +245,7 @@ fn bad_arguments_are_usage_errors() {
 #[test]
 fn previews_are_written_during_the_render() {
     let tmp = temp_dir("preview");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     let out = dir.join("p.exr");
     let mut child = Command::new(env!("CARGO_BIN_EXE_plexus"))
@@ -273,14 +273,14 @@ fn previews_are_written_during_the_render() {
 #[test]
 fn missing_scene_file_is_bad_input() {
     let tmp = temp_dir("missing-scene");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     render_fails(&dir, "does-not-exist.toml", &[], &["does-not-exist.toml"]);
 }
 
 #[test]
 fn tiny_render_writes_exr_png_and_json() {
     let tmp = temp_dir("success");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "tiny.toml", &good_scene());
     let o = plexus(
         &["render", &scene, "--spp", "4", "--seed", "3", "--threads", "2", "--out", "img.exr", "--out", "img.png"],
@@ -329,7 +329,7 @@ fn tiny_render_writes_exr_png_and_json() {
 #[test]
 fn default_outputs_are_named_after_the_scene() {
     let tmp = temp_dir("defaults");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "little.toml", &good_scene());
     let o = plexus(&["render", &scene, "--spp", "1", "--time", "0.2"], &dir);
     assert_eq!(o.status.code(), Some(2), "--spp and --time conflict");
@@ -348,7 +348,7 @@ fn default_outputs_are_named_after_the_scene() {
 #[test]
 fn info_prints_the_scene_summary() {
     let tmp = temp_dir("info");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     let o = plexus(&["info", &scene], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -368,7 +368,7 @@ fn info_prints_the_scene_summary() {
 #[test]
 fn bench_prints_progress_tables_and_json() {
     let tmp = temp_dir("bench");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let o = plexus(
         &[
             "bench",

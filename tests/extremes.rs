@@ -377,7 +377,7 @@ fn no_environment_means_no_environment_distribution() {
 #[test]
 fn stats_json_lists_scene_features() {
     let tmp = tempfile::tempdir().expect("temp dir");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let scene = dir.join("room.toml");
     std::fs::write(&scene, Room::default().toml()).expect("write scene");
     let exr = dir.join("room.exr");

@@ -64,7 +64,7 @@ fn read_planes(path: &Path) -> ((usize, usize), [Vec<f32>; 3], bool) {
 #[test]
 fn float_exr_round_trips_bit_for_bit() {
     let tmp = scratch_dir("float-exr");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("image.exr");
     let img = test_image();
     write_image(&path, &img, &WriteOptions::default()).unwrap();
@@ -89,7 +89,7 @@ fn float_exr_round_trips_bit_for_bit() {
 #[test]
 fn half_exr_is_within_half_precision() {
     let tmp = scratch_dir("half-exr");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("image.exr");
     // Values inside half's normal range [2^-14, 65504]: rounding to nearest half changes each by
     // at most half an ulp, a relative 2^-11.
@@ -113,7 +113,7 @@ fn half_exr_is_within_half_precision() {
 #[test]
 fn eight_bit_and_other_float_formats_are_written() {
     let tmp = scratch_dir("formats");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let mut img = Image::new(8, 6);
     for (i, p) in img.pixels.iter_mut().enumerate() {
         *p = Rgb::new(i as f32 / 48.0, 0.5, 2.0);
@@ -140,7 +140,7 @@ fn eight_bit_and_other_float_formats_are_written() {
 #[test]
 fn bad_output_paths_are_refused_with_their_reason() {
     let tmp = scratch_dir("bad-paths");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let img = test_image();
 
     let missing = dir.join("no-such-dir").join("out.exr");
@@ -170,7 +170,7 @@ fn bad_output_paths_are_refused_with_their_reason() {
 #[test]
 fn no_temporary_file_is_left_behind() {
     let tmp = scratch_dir("temp-files");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let img = test_image();
 
     // Success: only the requested file, and writing again replaces it.

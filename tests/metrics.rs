@@ -191,7 +191,7 @@ fn convergence_plot_is_written() {
         }
     }
     let tmp = tempfile::tempdir().expect("temp dir");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("converge.png");
     plexus::metrics::plot::plot_convergence(&path, &summarize(&records), "synthetic 1/t").expect("plot");
     assert!(std::fs::metadata(&path).expect("png").len() > 1000);

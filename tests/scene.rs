@@ -65,7 +65,7 @@ fn load_ok(path: &Path) -> LoadedScene {
 #[test]
 fn minimal_scene_loads_with_defaults() {
     let tmp = temp_dir("minimal");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("scene.toml");
     fs::write(&path, scene_text("")).unwrap();
     let loaded = load_ok(&path);
@@ -95,7 +95,7 @@ fn minimal_scene_loads_with_defaults() {
 #[test]
 fn render_and_integrator_tables() {
     let tmp = temp_dir("render");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("scene.toml");
     let extra = r#"
 [integrator]
@@ -190,7 +190,7 @@ fn accelerator_choice() {
 #[test]
 fn meshes_from_files_with_transforms() {
     let tmp = temp_dir("meshes");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     fs::write(dir.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n").unwrap();
     fs::write(
         dir.join("tri.ply"),
@@ -228,7 +228,7 @@ transform = { matrix = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, -3], [0, 0, 0, 1]]
 #[test]
 fn portals_are_kept() {
     let tmp = temp_dir("portals");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let extra = r#"
 [[portals]]
 corner = [0, 0, 0]
@@ -255,7 +255,7 @@ transform = { scale = 2, translate = [0, 0, 4] }
 #[test]
 fn malformed_toml() {
     let tmp = temp_dir("malformed");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let (file, msg) = load_err(&dir, "[camera\nposition = [0, 0, 0]\n");
     assert!(msg.starts_with(&format!("{file}: line 1: ")), "{msg}");
 }
@@ -263,7 +263,7 @@ fn malformed_toml() {
 #[test]
 fn unknown_key_names_line_table_and_expected_keys() {
     let tmp = temp_dir("unknown");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let text = scene_text("\n[[shapes]]\ntype = \"quad\"\nmaterial = \"white\"\ncolour = [1, 0, 0]\n");
     let line = text.lines().position(|l| l.starts_with("colour")).unwrap() + 1;
     let (file, msg) = load_err(&dir, &text);
@@ -297,7 +297,7 @@ fn unknown_key_names_line_table_and_expected_keys() {
 #[test]
 fn wrong_type_names_line_and_key() {
     let tmp = temp_dir("wrongtype");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let text = scene_text("").replace("fov = 40", "fov = \"wide\"");
     let (file, msg) = load_err(&dir, &text);
     assert!(msg.starts_with(&format!("{file}: line 4: key 'fov' in [camera]: invalid type: string \"wide\"")), "{msg}");
@@ -306,7 +306,7 @@ fn wrong_type_names_line_and_key() {
 #[test]
 fn missing_mesh_file() {
     let tmp = temp_dir("missingmesh");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let (file, msg) = load_err(
         &dir,
         &scene_text("\n[[shapes]]\ntype = \"obj\"\nfile = \"meshes/nowhere.obj\"\nmaterial = \"white\"\n"),
@@ -319,7 +319,7 @@ fn missing_mesh_file() {
 #[test]
 fn nan_vertex_in_obj() {
     let tmp = temp_dir("nanobj");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     fs::write(dir.join("bad.obj"), "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
     let (file, msg) =
         load_err(&dir, &scene_text("\n[[shapes]]\ntype = \"obj\"\nfile = \"bad.obj\"\nmaterial = \"white\"\n"));
@@ -335,7 +335,7 @@ fn nan_vertex_in_obj() {
 #[test]
 fn out_of_range_index_in_ply() {
     let tmp = temp_dir("badply");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     fs::write(
         dir.join("bad.ply"),
         "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
@@ -356,7 +356,7 @@ fn out_of_range_index_in_ply() {
 #[test]
 fn non_positive_resolution() {
     let tmp = temp_dir("resolution");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     for bad in ["[0, 24]", "[32, -5]"] {
         let (file, msg) = load_err(&dir, &scene_text("").replace("[32, 24]", bad));
         assert_eq!(
@@ -371,7 +371,7 @@ fn non_positive_resolution() {
 #[test]
 fn negative_roughness() {
     let tmp = temp_dir("roughness");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let (file, msg) = load_err(
         &dir,
         &scene_text("\n[materials.metal]\ntype = \"conductor\"\nroughness = -0.1\ncolour = [0.9, 0.6, 0.3]\n"),
@@ -382,7 +382,7 @@ fn negative_roughness() {
 #[test]
 fn negative_radiance() {
     let tmp = temp_dir("radiance");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let text = scene_text("").replace("radiance = [1, 1, 1]", "radiance = [-1, 0, 0]");
     let (file, msg) = load_err(&dir, &text);
     assert_eq!(
@@ -394,7 +394,7 @@ fn negative_radiance() {
 #[test]
 fn other_range_errors() {
     let tmp = temp_dir("ranges");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let (file, msg) = load_err(&dir, &scene_text("\n[materials.glass]\ntype = \"dielectric\"\nior = -1.5\n"));
     assert_eq!(msg, format!("{file}: materials.glass.ior: expected a number > 0, got -1.5"));
     let (file, msg) = load_err(&dir, &scene_text("").replace("reflectance = 0.5", "reflectance = [0.5, 1.2, 0.5]"));
@@ -436,7 +436,7 @@ fn other_range_errors() {
 #[test]
 fn missing_scene_file_and_string_loading() {
     let tmp = temp_dir("missingscene");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("none.toml");
     let e = load_scene(&path, None).err().expect("missing file must fail");
     assert!(matches!(e, SceneError::Read { .. }));
@@ -450,7 +450,7 @@ fn missing_scene_file_and_string_loading() {
 #[test]
 fn environment_errors_and_constant_environment() {
     let tmp = temp_dir("environment");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let (file, msg) = load_err(&dir, &scene_text("\n[environment]\ntype = \"image\"\nfile = \"nope.exr\"\n"));
     let exr = dir.join("nope.exr");
     assert!(msg.starts_with(&format!("{file}: environment.file: cannot read EXR file '{}': ", exr.display())), "{msg}");
@@ -506,7 +506,7 @@ fn documentation_examples_are_valid() {
     assert!(blocks.len() >= 10, "found {} TOML blocks", blocks.len());
     // The first block is a complete scene: it must load.
     let tmp = temp_dir("docs");
-    let dir = tmp.path();
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("doc.toml");
     fs::write(&path, &blocks[0]).unwrap();
     let s = load_ok(&path).scene;

@@ -245,7 +245,7 @@ mod tests {
     #[test]
     fn plot_without_font_draws_lines_and_no_text() {
         let tmp = tempfile::tempdir().expect("temp dir");
-        let dir = tmp.path();
+        let dir = tmp.path().to_path_buf();
         let path = dir.join("notext.png");
         let s = vec![
             cell("pt", 1.0, 1e-1, 5e-2),

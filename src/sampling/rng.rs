@@ -1,4 +1,4 @@
-use rand::{Rng as _, SeedableRng};
+use rand::Rng as _;
 use rand_distr::StandardNormal;
 use rand_pcg::Pcg64Mcg;
 
@@ -34,10 +34,6 @@ impl Rng {
     #[inline]
     pub fn next_u64(&mut self) -> u64 {
         self.0.gen::<u64>()
-    }
-    /// Seeds a stream from a raw seed (for tests).
-    pub fn from_seed_u64(seed: u64) -> Rng {
-        Rng(Pcg64Mcg::seed_from_u64(seed))
     }
 }
 
