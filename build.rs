@@ -6,7 +6,6 @@
 
 use std::env;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 const INSTALL_HINT: &str = "install the native dependencies with: \
      sudo apt-get install -y libembree-dev libopenimageio-dev libclang-dev";
@@ -19,23 +18,11 @@ fn fail(what: &str) -> ! {
 }
 
 /// Include directories and library directories that pkg-config reports for `package`, or None if
-/// pkg-config or the package is unavailable.
+/// pkg-config or the package is unavailable. Only the paths are taken: the libraries are linked by
+/// name below, after checking they exist, so that a missing one gets the install hint.
 fn pkg_config(package: &str) -> Option<(Vec<PathBuf>, Vec<PathBuf>)> {
-    let out = Command::new("pkg-config").args(["--cflags", "--libs", package]).output().ok()?;
-    if !out.status.success() {
-        return None;
-    }
-    let text = String::from_utf8_lossy(&out.stdout).into_owned();
-    let mut includes = Vec::new();
-    let mut libdirs = Vec::new();
-    for token in text.split_whitespace() {
-        if let Some(dir) = token.strip_prefix("-I") {
-            includes.push(PathBuf::from(dir));
-        } else if let Some(dir) = token.strip_prefix("-L") {
-            libdirs.push(PathBuf::from(dir));
-        }
-    }
-    Some((includes, libdirs))
+    let library = pkg_config::Config::new().cargo_metadata(false).probe(package).ok()?;
+    Some((library.include_paths, library.link_paths))
 }
 
 /// The first of `extra` followed by the system include directories that contains `header`.

@@ -4,7 +4,7 @@
 //! ray queries (Embree or the in-house BVH), `geometry` holds rays and hits, `sampling` holds every
 //! warp with its pdf and inverse, `scene` parses and builds scenes, `camera`/`material`/`light`
 //! sample and evaluate, `film` accumulates and writes images, `integrator` holds light transport,
-//! `stats` and `metrics` measure.
+//! `stats` and `metrics` measure, `bench` times the accelerators and the path tracer.
 
 pub mod accel;
 pub mod bench;

@@ -18,9 +18,9 @@ use glam::{Vec2, Vec3};
 use plexus::accel::bvh::Bvh;
 use plexus::accel::embree::EmbreeAccel;
 use plexus::accel::Accel;
-use plexus::bench::{displaced_sphere, terrain};
 use plexus::geometry::{Ray, TriangleMesh};
 use plexus::sampling::Rng;
+use plexus::scene::procedural::{displaced_sphere, terrain};
 
 const RAYS: usize = 100_000;
 const REL_T: f32 = 1e-5;

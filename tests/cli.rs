@@ -2,15 +2,12 @@
 //! line `error: ...` naming the file/key and what was expected, with exit code 2 (bad input) — never
 //! a panic or a backtrace — and a tiny successful render writes EXR, PNG and the JSON stats.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 /// A fresh, empty directory for one test.
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("plexus-cli-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("create temp dir");
-    dir
+fn temp_dir(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("plexus-cli-test-{name}-")).tempdir().expect("create temp dir")
 }
 
 fn plexus(args: &[&str], cwd: &Path) -> Output {
@@ -99,14 +96,16 @@ fn render_fails(dir: &Path, scene: &str, args: &[&str], needles: &[&str]) {
 
 #[test]
 fn malformed_toml_names_file_and_line() {
-    let dir = temp_dir("malformed");
+    let tmp = temp_dir("malformed");
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "bad.toml", "[camera\nposition = [0, 0, 0]\n");
     render_fails(&dir, &scene, &[], &["bad.toml", "line 1"]);
 }
 
 #[test]
 fn unknown_key_names_key_and_expected_keys() {
-    let dir = temp_dir("unknown-key");
+    let tmp = temp_dir("unknown-key");
+    let dir = tmp.path().to_path_buf();
     let text = good_scene().replace("fov = 45.0", "fov = 45.0\nfocal_length = 3.0");
     let scene = write(&dir, "s.toml", &text);
     render_fails(&dir, &scene, &[], &["s.toml", "focal_length", "fov"]);
@@ -114,7 +113,8 @@ fn unknown_key_names_key_and_expected_keys() {
 
 #[test]
 fn missing_mesh_file_names_the_mesh() {
-    let dir = temp_dir("missing-mesh");
+    let tmp = temp_dir("missing-mesh");
+    let dir = tmp.path().to_path_buf();
     let text = format!("{}\n[[shapes]]\ntype = \"obj\"\nfile = \"nowhere.obj\"\nmaterial = \"floor\"\n", good_scene());
     let scene = write(&dir, "s.toml", &text);
     render_fails(&dir, &scene, &[], &["s.toml", "shapes[2].file", "nowhere.obj"]);
@@ -122,7 +122,8 @@ fn missing_mesh_file_names_the_mesh() {
 
 #[test]
 fn nan_vertex_is_rejected() {
-    let dir = temp_dir("nan-vertex");
+    let tmp = temp_dir("nan-vertex");
+    let dir = tmp.path().to_path_buf();
     write(&dir, "nan.obj", "v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n");
     let text = format!("{}\n[[shapes]]\ntype = \"obj\"\nfile = \"nan.obj\"\nmaterial = \"floor\"\n", good_scene());
     let scene = write(&dir, "s.toml", &text);
@@ -131,7 +132,8 @@ fn nan_vertex_is_rejected() {
 
 #[test]
 fn out_of_range_index_is_rejected() {
-    let dir = temp_dir("bad-index");
+    let tmp = temp_dir("bad-index");
+    let dir = tmp.path().to_path_buf();
     // PLY, because OBJ readers resolve indices themselves; a face refers to vertex 7 of 3.
     let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
                element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n";
@@ -143,7 +145,8 @@ fn out_of_range_index_is_rejected() {
 
 #[test]
 fn non_positive_resolution_is_rejected() {
-    let dir = temp_dir("resolution");
+    let tmp = temp_dir("resolution");
+    let dir = tmp.path().to_path_buf();
     for res in ["[0, 6]", "[8, -2]"] {
         let text = scene_text("type = \"diffuse\"\nreflectance = 0.5", "[1.0, 1.0, 1.0]", res, "");
         let scene = write(&dir, "s.toml", &text);
@@ -153,7 +156,8 @@ fn non_positive_resolution_is_rejected() {
 
 #[test]
 fn negative_roughness_is_rejected() {
-    let dir = temp_dir("roughness");
+    let tmp = temp_dir("roughness");
+    let dir = tmp.path().to_path_buf();
     let text =
         scene_text("type = \"conductor\"\nroughness = -0.1\ncolour = [0.9, 0.6, 0.3]", "[1.0, 1.0, 1.0]", "[8, 6]", "");
     let scene = write(&dir, "s.toml", &text);
@@ -162,7 +166,8 @@ fn negative_roughness_is_rejected() {
 
 #[test]
 fn negative_radiance_is_rejected() {
-    let dir = temp_dir("radiance");
+    let tmp = temp_dir("radiance");
+    let dir = tmp.path().to_path_buf();
     let text = scene_text("type = \"diffuse\"\nreflectance = 0.5", "[1.0, -2.0, 1.0]", "[8, 6]", "");
     let scene = write(&dir, "s.toml", &text);
     render_fails(&dir, &scene, &[], &["s.toml", "shapes[1].emission.radiance", "-2"]);
@@ -170,7 +175,8 @@ fn negative_radiance_is_rejected() {
 
 #[test]
 fn unknown_integrator_lists_the_valid_ones() {
-    let dir = temp_dir("integrator");
+    let tmp = temp_dir("integrator");
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     render_fails(&dir, &scene, &["--integrator", "magic"], &["unknown integrator 'magic'", "pt"]);
     let in_file = write(&dir, "t.toml", &format!("{}\n[integrator]\ntype = \"magic\"\n", good_scene()));
@@ -179,7 +185,8 @@ fn unknown_integrator_lists_the_valid_ones() {
 
 #[test]
 fn unknown_or_ill_typed_setting_is_rejected() {
-    let dir = temp_dir("settings");
+    let tmp = temp_dir("settings");
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     render_fails(&dir, &scene, &["--set", "max_dept=3"], &["max_dept", "max_depth"]);
     render_fails(&dir, &scene, &["--set", "max_depth=lots"], &["max_depth"]);
@@ -190,7 +197,8 @@ fn unknown_or_ill_typed_setting_is_rejected() {
 
 #[test]
 fn output_in_missing_directory_is_rejected_before_rendering() {
-    let dir = temp_dir("missing-dir");
+    let tmp = temp_dir("missing-dir");
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     let out = dir.join("no/such/dir/out.exr");
     render_fails(&dir, &scene, &["--spp", "1", "--out", &out.to_string_lossy()], &["no/such/dir"]);
@@ -199,7 +207,8 @@ fn output_in_missing_directory_is_rejected_before_rendering() {
 
 #[test]
 fn unwritable_format_is_rejected_before_rendering() {
-    let dir = temp_dir("format");
+    let tmp = temp_dir("format");
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     // A valid first output must not be written either: every path is checked up front.
     let good = dir.join("first.exr");
@@ -209,7 +218,8 @@ fn unwritable_format_is_rejected_before_rendering() {
 
 #[test]
 fn bad_arguments_are_usage_errors() {
-    let dir = temp_dir("usage");
+    let tmp = temp_dir("usage");
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     for args in [
         vec!["render", scene.as_str(), "--spp", "4", "--time", "1"],
@@ -238,7 +248,8 @@ fn bad_arguments_are_usage_errors() {
 /// clock is involved.
 #[test]
 fn previews_leave_the_final_image_unchanged() {
-    let dir = temp_dir("preview");
+    let tmp = temp_dir("preview");
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     let common = ["--spp", "4096", "--seed", "5", "--threads", "2"];
     let with =
@@ -268,13 +279,15 @@ fn previews_leave_the_final_image_unchanged() {
 
 #[test]
 fn missing_scene_file_is_bad_input() {
-    let dir = temp_dir("missing-scene");
+    let tmp = temp_dir("missing-scene");
+    let dir = tmp.path().to_path_buf();
     render_fails(&dir, "does-not-exist.toml", &[], &["does-not-exist.toml"]);
 }
 
 #[test]
 fn tiny_render_writes_exr_png_and_json() {
-    let dir = temp_dir("success");
+    let tmp = temp_dir("success");
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "tiny.toml", &good_scene());
     let o = plexus(
         &["render", &scene, "--spp", "4", "--seed", "3", "--threads", "2", "--out", "img.exr", "--out", "img.png"],
@@ -322,7 +335,8 @@ fn tiny_render_writes_exr_png_and_json() {
 
 #[test]
 fn default_outputs_are_named_after_the_scene() {
-    let dir = temp_dir("defaults");
+    let tmp = temp_dir("defaults");
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "little.toml", &good_scene());
     let o = plexus(&["render", &scene, "--spp", "1", "--time", "0.2"], &dir);
     assert_eq!(o.status.code(), Some(2), "--spp and --time conflict");
@@ -340,7 +354,8 @@ fn default_outputs_are_named_after_the_scene() {
 
 #[test]
 fn info_prints_the_scene_summary() {
-    let dir = temp_dir("info");
+    let tmp = temp_dir("info");
+    let dir = tmp.path().to_path_buf();
     let scene = write(&dir, "s.toml", &good_scene());
     let o = plexus(&["info", &scene], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -352,4 +367,49 @@ fn info_prints_the_scene_summary() {
     assert_eq!(json["area_lights"], 1);
     let o = plexus(&["info", "missing.toml"], &dir);
     assert_error(&o, 2, &["missing.toml"]);
+}
+
+/// `plexus bench` on a tiny scene (about 0.1 s): the progress lines, the Markdown tables and the
+/// JSON report, with the counts that do not depend on timing (the generated scene, the recorded
+/// rays, every accelerator finding the same hits) as the full run prints them.
+#[test]
+fn bench_prints_progress_tables_and_json() {
+    let tmp = temp_dir("bench");
+    let dir = tmp.path().to_path_buf();
+    let o = plexus(
+        &[
+            "bench",
+            "--triangles",
+            "2000",
+            "--resolution",
+            "8x6",
+            "--repetitions",
+            "1",
+            "--threads",
+            "1",
+            "--json",
+            "bench.json",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let lines: Vec<&str> = out.lines().collect();
+    assert!(lines[0].starts_with("scene: ") && lines[0].contains("triangles in 27 meshes"), "{out}");
+    assert_eq!(lines[1], "rays: 48 camera, 192 bounce (4 bounces per path at most)", "{out}");
+    for accel in ["embree", "bvh", "embree bare loop"] {
+        assert!(out.contains(&format!("{accel:>17} 1 thread(s): build ")), "{out}");
+        assert!(out.contains(&format!("  {accel}: 48 camera hits, 192 bounce hits")), "{out}");
+    }
+    assert!(out.contains("  path tracer 1 thread(s): "), "{out}");
+    assert!(out.contains("| accelerator | threads | build s (CPU s) |"), "{out}");
+    assert!(out.contains("| BVH / Embree | 1 |"), "{out}");
+    assert!(out.contains("| pt, 1 spp | 1 |"), "{out}");
+    assert!(out.trim_end().ends_with("MB."), "{out}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("bench.json")).expect("bench.json written"))
+            .expect("bench.json is JSON");
+    assert_eq!(json["camera_rays"], 48);
+    assert_eq!(json["rows"].as_array().map(Vec::len), Some(3));
+    assert_eq!(json["path_tracer"][0]["threads"], 1);
 }

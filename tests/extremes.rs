@@ -376,8 +376,8 @@ fn no_environment_means_no_environment_distribution() {
 /// The stats JSON written by `plexus render` lists the scene features that were built.
 #[test]
 fn stats_json_lists_scene_features() {
-    let dir = std::env::temp_dir().join(format!("plexus-extremes-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let dir = tmp.path().to_path_buf();
     let scene = dir.join("room.toml");
     std::fs::write(&scene, Room::default().toml()).expect("write scene");
     let exr = dir.join("room.exr");
@@ -395,5 +395,4 @@ fn stats_json_lists_scene_features() {
     assert_eq!(f["area_lights"], serde_json::json!(1), "{json}");
     assert_eq!(f["portals"], serde_json::json!(0), "{json}");
     assert_eq!(json["counters"]["nonfinite_dropped"], serde_json::json!(0), "{json}");
-    std::fs::remove_dir_all(&dir).ok();
 }

@@ -1,7 +1,7 @@
 //! Round trips through the FFI: images written by the OpenImageIO shim and read back with the `exr`
 //! crate, the writer's error paths and temporary-file hygiene, and Embree's error path.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 
 use exr::prelude::{read_first_flat_layer_from_file, FlatSamples};
@@ -14,11 +14,8 @@ use plexus::geometry::{Ray, TriangleMesh};
 use plexus::spectrum::Rgb;
 
 /// A fresh, empty directory for one test.
-fn scratch_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("plexus-ffi-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch_dir(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("plexus-ffi-{name}-")).tempdir().expect("create temp dir")
 }
 
 /// Names of the entries of `dir`, sorted.
@@ -66,7 +63,8 @@ fn read_planes(path: &Path) -> ((usize, usize), [Vec<f32>; 3], bool) {
 
 #[test]
 fn float_exr_round_trips_bit_for_bit() {
-    let dir = scratch_dir("float-exr");
+    let tmp = scratch_dir("float-exr");
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("image.exr");
     let img = test_image();
     write_image(&path, &img, &WriteOptions::default()).unwrap();
@@ -86,12 +84,12 @@ fn float_exr_round_trips_bit_for_bit() {
         img.pixels.iter().map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>()
     );
     assert_eq!(entries(&dir), ["image.exr"]);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
 fn half_exr_is_within_half_precision() {
-    let dir = scratch_dir("half-exr");
+    let tmp = scratch_dir("half-exr");
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("image.exr");
     // Values inside half's normal range [2^-14, 65504]: rounding to nearest half changes each by
     // at most half an ulp, a relative 2^-11.
@@ -110,12 +108,12 @@ fn half_exr_is_within_half_precision() {
             assert!(rel <= 2f32.powi(-11), "pixel {i} channel {c}: wrote {}, read {} (rel {rel})", p[c], planes[c][i]);
         }
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
 fn eight_bit_and_other_float_formats_are_written() {
-    let dir = scratch_dir("formats");
+    let tmp = scratch_dir("formats");
+    let dir = tmp.path().to_path_buf();
     let mut img = Image::new(8, 6);
     for (i, p) in img.pixels.iter_mut().enumerate() {
         *p = Rgb::new(i as f32 / 48.0, 0.5, 2.0);
@@ -137,12 +135,12 @@ fn eight_bit_and_other_float_formats_are_written() {
     assert_eq!(u32::from_be_bytes(png[16..20].try_into().unwrap()), 8);
     assert_eq!(u32::from_be_bytes(png[20..24].try_into().unwrap()), 6);
     assert_eq!((png[24], png[25]), (8, 2), "bit depth 8, colour type 2 (RGB)");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
 fn bad_output_paths_are_refused_with_their_reason() {
-    let dir = scratch_dir("bad-paths");
+    let tmp = scratch_dir("bad-paths");
+    let dir = tmp.path().to_path_buf();
     let img = test_image();
 
     let missing = dir.join("no-such-dir").join("out.exr");
@@ -167,12 +165,12 @@ fn bad_output_paths_are_refused_with_their_reason() {
     assert!(matches!(err, ImageWriteError::NotADirectory { .. }), "{err}");
 
     assert_eq!(entries(&dir), ["file"], "nothing was created by the refused writes");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
 fn no_temporary_file_is_left_behind() {
-    let dir = scratch_dir("temp-files");
+    let tmp = scratch_dir("temp-files");
+    let dir = tmp.path().to_path_buf();
     let img = test_image();
 
     // Success: only the requested file, and writing again replaces it.
@@ -211,7 +209,6 @@ fn no_temporary_file_is_left_behind() {
         Err(ImageWriteError::BadImage { .. })
     ));
     assert_eq!(entries(&dir), ["out.exr", "taken.png"]);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 fn quad() -> Arc<TriangleMesh> {

@@ -190,15 +190,14 @@ fn convergence_plot_is_written() {
             }
         }
     }
-    let dir = std::env::temp_dir().join(format!("plexus-metrics-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("converge.png");
     plexus::metrics::plot::plot_convergence(&path, &summarize(&records), "synthetic 1/t").expect("plot");
     assert!(std::fs::metadata(&path).expect("png").len() > 1000);
     if let Ok(keep) = std::env::var("PLEXUS_KEEP_PLOT") {
         std::fs::copy(&path, keep).expect("copy plot");
     }
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The wall time a render reports is its own: never more than the time measured around the call.

@@ -13,11 +13,8 @@ fn scenes_dir() -> PathBuf {
 }
 
 /// A fresh directory for one test's files.
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("plexus-scene-test-{}-{name}", std::process::id()));
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).unwrap();
-    dir
+fn temp_dir(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("plexus-scene-test-{name}-")).tempdir().expect("create temp dir")
 }
 
 /// A minimal valid scene: one diffuse quad lit by a quad light, plus `extra` TOML appended.
@@ -67,7 +64,8 @@ fn load_ok(path: &Path) -> LoadedScene {
 
 #[test]
 fn minimal_scene_loads_with_defaults() {
-    let dir = temp_dir("minimal");
+    let tmp = temp_dir("minimal");
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("scene.toml");
     fs::write(&path, scene_text("")).unwrap();
     let loaded = load_ok(&path);
@@ -96,7 +94,8 @@ fn minimal_scene_loads_with_defaults() {
 
 #[test]
 fn render_and_integrator_tables() {
-    let dir = temp_dir("render");
+    let tmp = temp_dir("render");
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("scene.toml");
     let extra = r#"
 [integrator]
@@ -190,7 +189,8 @@ fn accelerator_choice() {
 
 #[test]
 fn meshes_from_files_with_transforms() {
-    let dir = temp_dir("meshes");
+    let tmp = temp_dir("meshes");
+    let dir = tmp.path().to_path_buf();
     fs::write(dir.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n").unwrap();
     fs::write(
         dir.join("tri.ply"),
@@ -227,7 +227,8 @@ transform = { matrix = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, -3], [0, 0, 0, 1]]
 
 #[test]
 fn portals_are_kept() {
-    let dir = temp_dir("portals");
+    let tmp = temp_dir("portals");
+    let dir = tmp.path().to_path_buf();
     let extra = r#"
 [[portals]]
 corner = [0, 0, 0]
@@ -253,14 +254,16 @@ transform = { scale = 2, translate = [0, 0, 4] }
 
 #[test]
 fn malformed_toml() {
-    let dir = temp_dir("malformed");
+    let tmp = temp_dir("malformed");
+    let dir = tmp.path().to_path_buf();
     let (file, msg) = load_err(&dir, "[camera\nposition = [0, 0, 0]\n");
     assert!(msg.starts_with(&format!("{file}: line 1: ")), "{msg}");
 }
 
 #[test]
 fn unknown_key_names_line_table_and_expected_keys() {
-    let dir = temp_dir("unknown");
+    let tmp = temp_dir("unknown");
+    let dir = tmp.path().to_path_buf();
     let text = scene_text("\n[[shapes]]\ntype = \"quad\"\nmaterial = \"white\"\ncolour = [1, 0, 0]\n");
     let line = text.lines().position(|l| l.starts_with("colour")).unwrap() + 1;
     let (file, msg) = load_err(&dir, &text);
@@ -293,7 +296,8 @@ fn unknown_key_names_line_table_and_expected_keys() {
 
 #[test]
 fn wrong_type_names_line_and_key() {
-    let dir = temp_dir("wrongtype");
+    let tmp = temp_dir("wrongtype");
+    let dir = tmp.path().to_path_buf();
     let text = scene_text("").replace("fov = 40", "fov = \"wide\"");
     let (file, msg) = load_err(&dir, &text);
     assert!(msg.starts_with(&format!("{file}: line 4: key 'fov' in [camera]: invalid type: string \"wide\"")), "{msg}");
@@ -301,7 +305,8 @@ fn wrong_type_names_line_and_key() {
 
 #[test]
 fn missing_mesh_file() {
-    let dir = temp_dir("missingmesh");
+    let tmp = temp_dir("missingmesh");
+    let dir = tmp.path().to_path_buf();
     let (file, msg) = load_err(
         &dir,
         &scene_text("\n[[shapes]]\ntype = \"obj\"\nfile = \"meshes/nowhere.obj\"\nmaterial = \"white\"\n"),
@@ -313,7 +318,8 @@ fn missing_mesh_file() {
 
 #[test]
 fn nan_vertex_in_obj() {
-    let dir = temp_dir("nanobj");
+    let tmp = temp_dir("nanobj");
+    let dir = tmp.path().to_path_buf();
     fs::write(dir.join("bad.obj"), "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
     let (file, msg) =
         load_err(&dir, &scene_text("\n[[shapes]]\ntype = \"obj\"\nfile = \"bad.obj\"\nmaterial = \"white\"\n"));
@@ -328,7 +334,8 @@ fn nan_vertex_in_obj() {
 
 #[test]
 fn out_of_range_index_in_ply() {
-    let dir = temp_dir("badply");
+    let tmp = temp_dir("badply");
+    let dir = tmp.path().to_path_buf();
     fs::write(
         dir.join("bad.ply"),
         "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
@@ -348,7 +355,8 @@ fn out_of_range_index_in_ply() {
 
 #[test]
 fn non_positive_resolution() {
-    let dir = temp_dir("resolution");
+    let tmp = temp_dir("resolution");
+    let dir = tmp.path().to_path_buf();
     for bad in ["[0, 24]", "[32, -5]"] {
         let (file, msg) = load_err(&dir, &scene_text("").replace("[32, 24]", bad));
         assert_eq!(
@@ -362,7 +370,8 @@ fn non_positive_resolution() {
 
 #[test]
 fn negative_roughness() {
-    let dir = temp_dir("roughness");
+    let tmp = temp_dir("roughness");
+    let dir = tmp.path().to_path_buf();
     let (file, msg) = load_err(
         &dir,
         &scene_text("\n[materials.metal]\ntype = \"conductor\"\nroughness = -0.1\ncolour = [0.9, 0.6, 0.3]\n"),
@@ -372,7 +381,8 @@ fn negative_roughness() {
 
 #[test]
 fn negative_radiance() {
-    let dir = temp_dir("radiance");
+    let tmp = temp_dir("radiance");
+    let dir = tmp.path().to_path_buf();
     let text = scene_text("").replace("radiance = [1, 1, 1]", "radiance = [-1, 0, 0]");
     let (file, msg) = load_err(&dir, &text);
     assert_eq!(
@@ -383,7 +393,8 @@ fn negative_radiance() {
 
 #[test]
 fn other_range_errors() {
-    let dir = temp_dir("ranges");
+    let tmp = temp_dir("ranges");
+    let dir = tmp.path().to_path_buf();
     let (file, msg) = load_err(&dir, &scene_text("\n[materials.glass]\ntype = \"dielectric\"\nior = -1.5\n"));
     assert_eq!(msg, format!("{file}: materials.glass.ior: expected a number > 0, got -1.5"));
     let (file, msg) = load_err(&dir, &scene_text("").replace("reflectance = 0.5", "reflectance = [0.5, 1.2, 0.5]"));
@@ -424,7 +435,8 @@ fn other_range_errors() {
 
 #[test]
 fn missing_scene_file_and_string_loading() {
-    let dir = temp_dir("missingscene");
+    let tmp = temp_dir("missingscene");
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("none.toml");
     let e = load_scene(&path, None).err().expect("missing file must fail");
     assert!(matches!(e, SceneError::Read { .. }));
@@ -437,7 +449,8 @@ fn missing_scene_file_and_string_loading() {
 
 #[test]
 fn environment_errors_and_constant_environment() {
-    let dir = temp_dir("environment");
+    let tmp = temp_dir("environment");
+    let dir = tmp.path().to_path_buf();
     let (file, msg) = load_err(&dir, &scene_text("\n[environment]\ntype = \"image\"\nfile = \"nope.exr\"\n"));
     let exr = dir.join("nope.exr");
     assert!(msg.starts_with(&format!("{file}: environment.file: cannot read EXR file '{}': ", exr.display())), "{msg}");
@@ -492,7 +505,8 @@ fn documentation_examples_are_valid() {
     let blocks = doc_blocks();
     assert!(blocks.len() >= 10, "found {} TOML blocks", blocks.len());
     // The first block is a complete scene: it must load.
-    let dir = temp_dir("docs");
+    let tmp = temp_dir("docs");
+    let dir = tmp.path().to_path_buf();
     let path = dir.join("doc.toml");
     fs::write(&path, &blocks[0]).unwrap();
     let s = load_ok(&path).scene;

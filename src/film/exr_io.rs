@@ -84,13 +84,16 @@ mod tests {
     use super::*;
     use exr::prelude::{f16, write_rgba_file, AnyChannels, SmallVec, WritableImage};
 
-    fn temp(name: &str) -> PathBuf {
-        std::env::temp_dir().join(format!("plexus-exr-io-{}-{name}", std::process::id()))
+    /// A path `name` in a fresh directory that is removed with the returned guard.
+    fn temp(name: &str) -> (tempfile::TempDir, PathBuf) {
+        let dir = tempfile::Builder::new().prefix("plexus-exr-io-").tempdir().expect("temp dir");
+        let path = dir.path().join(name);
+        (dir, path)
     }
 
     #[test]
     fn reads_rgba_half_ignoring_alpha() {
-        let path = temp("rgba.exr");
+        let (_dir_path, path) = temp("rgba.exr");
         write_rgba_file(&path, 3, 2, |x, y| {
             (f16::from_f32(x as f32), f16::from_f32(y as f32), f16::from_f32(-0.5), f16::from_f32(0.25))
         })
@@ -104,7 +107,7 @@ mod tests {
 
     #[test]
     fn broadcasts_luminance_only_files() {
-        let path = temp("y.exr");
+        let (_dir_path, path) = temp("y.exr");
         let values: Vec<f32> = (0..6).map(|i| i as f32 * 1.5).collect();
         let channels = AnyChannels::sort(SmallVec::from_vec(vec![AnyChannel::new("Y", FlatSamples::F32(values))]));
         exr::prelude::Image::from_channels((2, 3), channels).write().to_file(&path).unwrap();
@@ -116,11 +119,11 @@ mod tests {
 
     #[test]
     fn errors_name_the_file() {
-        let missing = temp("missing.exr");
+        let (_dir_missing, missing) = temp("missing.exr");
         let e = read_exr(&missing).unwrap_err().to_string();
         assert!(e.contains(&missing.display().to_string()), "{e}");
 
-        let path = temp("z.exr");
+        let (_dir_path, path) = temp("z.exr");
         let channels =
             AnyChannels::sort(SmallVec::from_vec(vec![AnyChannel::new("Z", FlatSamples::F32(vec![1.0; 4]))]));
         exr::prelude::Image::from_channels((2, 2), channels).write().to_file(&path).unwrap();
@@ -129,7 +132,7 @@ mod tests {
         assert!(matches!(e, ExrReadError::NoColourChannels { .. }), "{e}");
         assert!(e.to_string().contains("(it has: Z)"), "{e}");
 
-        let garbage = temp("garbage.exr");
+        let (_dir_garbage, garbage) = temp("garbage.exr");
         std::fs::write(&garbage, b"not an exr file").unwrap();
         let e = read_exr(&garbage).unwrap_err().to_string();
         std::fs::remove_file(&garbage).unwrap();

@@ -10,7 +10,6 @@
 
 use std::ffi::{c_char, c_int, c_void, CString};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use thiserror::Error;
 
@@ -159,27 +158,20 @@ pub fn check_output_path(path: &Path) -> Result<(), ImageWriteError> {
     Ok(())
 }
 
-/// A temporary file that is deleted on drop unless it was renamed into place.
-struct TempFile {
-    path: PathBuf,
-    armed: bool,
-}
-
-impl Drop for TempFile {
-    fn drop(&mut self) {
-        if self.armed {
-            // The file may never have been created; nothing useful can be done if removal fails.
-            let _ = std::fs::remove_file(&self.path);
-        }
-    }
-}
-
-/// A unique hidden name beside `path` that keeps its extension (OpenImageIO picks the format by it).
-fn temp_path(path: &Path, ext: &str) -> PathBuf {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+/// A new, empty hidden file beside `path` that keeps its extension (OpenImageIO picks the format
+/// by it), deleted when dropped unless persisted (renamed) into place. Created with mode 0666
+/// before the umask, as OpenImageIO would create the image itself, rather than tempfile's 0600,
+/// so the renamed image has the permissions of any other file the user writes.
+fn temp_file_beside(path: &Path, ext: &str) -> Result<tempfile::TempPath, ImageWriteError> {
+    use std::os::unix::fs::PermissionsExt;
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    target_dir(path).join(format!(".{stem}.plexus-tmp-{}-{n}.{ext}", std::process::id()))
+    tempfile::Builder::new()
+        .prefix(&format!(".{stem}.plexus-tmp-"))
+        .suffix(&format!(".{ext}"))
+        .permissions(std::fs::Permissions::from_mode(0o666))
+        .tempfile_in(target_dir(path))
+        .map(tempfile::NamedTempFile::into_temp_path)
+        .map_err(|source| ImageWriteError::Io { path: path.to_path_buf(), source })
 }
 
 /// Writes `image` to `path` in the format its extension names (see the module documentation).
@@ -215,8 +207,8 @@ pub fn write_image(path: &Path, image: &Image, opts: &WriteOptions) -> Result<()
 
     // `check_output_path` guaranteed an extension.
     let ext = path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
-    let mut temp = TempFile { path: temp_path(path, &ext), armed: true };
-    let c_temp = c_path(&temp.path)?;
+    let temp = temp_file_beside(path, &ext)?;
+    let c_temp = c_path(&temp)?;
     let mut buf = [0u8; 1024];
     // SAFETY: `c_temp` is NUL-terminated; `data` points to width*height*3 values of `data_type`
     // (`floats` or `bytes`, alive until the end of this function); `buf` is writable for its
@@ -236,11 +228,10 @@ pub fn write_image(path: &Path, image: &Image, opts: &WriteOptions) -> Result<()
     };
     if status != PLX_OK {
         // Messages may name the temporary file; the user only knows the name they asked for.
-        let text = message(&buf).replace(&temp.path.display().to_string(), &path.display().to_string());
+        let text = message(&buf).replace(&temp.display().to_string(), &path.display().to_string());
         return Err(ImageWriteError::Oiio { path: path.to_path_buf(), message: text });
     }
-    std::fs::rename(&temp.path, path).map_err(|source| ImageWriteError::Io { path: path.to_path_buf(), source })?;
-    temp.armed = false;
+    temp.persist(path).map_err(|e| ImageWriteError::Io { path: path.to_path_buf(), source: e.error })?;
     Ok(())
 }
 

@@ -244,8 +244,8 @@ mod tests {
     /// fail) the plot is still drawn and non-blank where the lines are.
     #[test]
     fn plot_without_font_draws_lines_and_no_text() {
-        let dir = std::env::temp_dir().join(format!("plexus-plot-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("temp dir");
+        let tmp = tempfile::tempdir().expect("temp dir");
+        let dir = tmp.path().to_path_buf();
         let path = dir.join("notext.png");
         let s = vec![
             cell("pt", 1.0, 1e-1, 5e-2),

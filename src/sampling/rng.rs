@@ -1,4 +1,5 @@
-use rand::{Rng as _, SeedableRng};
+use rand::Rng as _;
+use rand_distr::StandardNormal;
 use rand_pcg::Pcg64Mcg;
 
 /// A deterministic random stream. Streams are derived from (seed, stream index) — a pixel, a
@@ -25,13 +26,14 @@ impl Rng {
     pub fn uniform_f64(&mut self) -> f64 {
         (self.0.gen::<u64>() >> 11) as f64 * (1.0 / 9_007_199_254_740_992.0)
     }
+    /// A standard normal deviate (`rand_distr`'s ziggurat), in double precision.
+    #[inline]
+    pub fn standard_normal(&mut self) -> f64 {
+        self.0.sample(StandardNormal)
+    }
     #[inline]
     pub fn next_u64(&mut self) -> u64 {
         self.0.gen::<u64>()
-    }
-    /// Seeds a stream from a raw seed (for tests).
-    pub fn from_seed_u64(seed: u64) -> Rng {
-        Rng(Pcg64Mcg::seed_from_u64(seed))
     }
 }
 

@@ -65,8 +65,32 @@ pub fn load_scene_str(
     name: &str,
     accel: Option<AccelKind>,
 ) -> Result<LoadedScene, SceneError> {
+    load_scene_str_with_meshes(toml_text, base_dir, name, accel, Vec::new())
+}
+
+/// A mesh made in memory (procedurally, say) that joins a scene beside its file's `[[shapes]]`.
+/// It does not emit; its material is named as a shape's would be.
+#[derive(Clone, Debug)]
+pub struct MeshShape {
+    /// Name for messages and `plexus info`.
+    pub name: String,
+    pub mesh: Arc<TriangleMesh>,
+    /// A key of the file's `[materials]`.
+    pub material: String,
+}
+
+/// `load_scene_str` with `meshes` appended after the file's shapes (so their `geom_id`s follow
+/// the file's): bounds, lights and the accelerator are built over all of them, once, exactly as
+/// for a scene file. A mesh's unknown material is reported at key `meshes[k].material`.
+pub fn load_scene_str_with_meshes(
+    toml_text: &str,
+    base_dir: &Path,
+    name: &str,
+    accel: Option<AccelKind>,
+    meshes: Vec<MeshShape>,
+) -> Result<LoadedScene, SceneError> {
     let desc: SceneDesc = toml::from_str(toml_text).map_err(|e| SceneError::from_toml(name, toml_text, &e))?;
-    Builder { file: name, base_dir }.build(desc, accel)
+    Builder { file: name, base_dir }.build(desc, meshes, accel)
 }
 
 struct Builder<'a> {
@@ -86,15 +110,28 @@ impl Builder<'_> {
         SceneError::Invalid { file: self.file.to_string(), key: key.into(), message: message.into() }
     }
 
-    fn build(&self, desc: SceneDesc, accel_override: Option<AccelKind>) -> Result<LoadedScene, SceneError> {
+    fn build(
+        &self,
+        desc: SceneDesc,
+        in_memory: Vec<MeshShape>,
+        accel_override: Option<AccelKind>,
+    ) -> Result<LoadedScene, SceneError> {
         let camera = self.camera(&desc.camera)?;
         let (materials, material_index) = self.materials(&desc.materials)?;
         if desc.shapes.is_empty() {
             return Err(self.err("shapes", "expected at least one [[shapes]] entry, found none"));
         }
-        let mut built = Vec::with_capacity(desc.shapes.len());
+        let mut built = Vec::with_capacity(desc.shapes.len() + in_memory.len());
         for (i, s) in desc.shapes.iter().enumerate() {
             built.push(self.shape(i, s, &material_index)?);
+        }
+        for (k, m) in in_memory.into_iter().enumerate() {
+            let material = self.material_index(&format!("meshes[{k}].material"), &m.material, &material_index)?;
+            built.push(BuiltShape {
+                mesh: m.mesh,
+                info: ShapeInfo { name: m.name, material, light: None },
+                emission: None,
+            });
         }
         let render = self.render(desc.integrator, desc.render.unwrap_or_default(), accel_override)?;
 
@@ -279,17 +316,7 @@ impl Builder<'_> {
 
     fn shape(&self, i: usize, s: &ShapeDesc, materials: &BTreeMap<String, u32>) -> Result<BuiltShape, SceneError> {
         let key = |k: &str| format!("shapes[{i}].{k}");
-        let &material = materials.get(&s.material).ok_or_else(|| {
-            let known: Vec<&str> = materials.keys().map(String::as_str).collect();
-            self.err(
-                key("material"),
-                format!(
-                    "unknown material '{}' (defined: {})",
-                    s.material,
-                    if known.is_empty() { "none".to_string() } else { known.join(", ") }
-                ),
-            )
-        })?;
+        let material = self.material_index(&key("material"), &s.material, materials)?;
         let takes_file = matches!(s.kind.as_str(), "obj" | "ply");
         if takes_file != s.file.is_some() {
             return Err(if takes_file {
@@ -369,6 +396,20 @@ impl Builder<'_> {
             None => None,
         };
         Ok(BuiltShape { mesh: Arc::new(mesh), info: ShapeInfo { name, material, light: None }, emission })
+    }
+
+    /// The index of material `name`, or an error at `key` listing the defined ones.
+    fn material_index(&self, key: &str, name: &str, materials: &BTreeMap<String, u32>) -> Result<u32, SceneError> {
+        materials.get(name).copied().ok_or_else(|| {
+            let known: Vec<&str> = materials.keys().map(String::as_str).collect();
+            self.err(
+                key,
+                format!(
+                    "unknown material '{name}' (defined: {})",
+                    if known.is_empty() { "none".to_string() } else { known.join(", ") }
+                ),
+            )
+        })
     }
 
     /// Splits a transform error "sub.key: message" into the key path and the message.

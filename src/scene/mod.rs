@@ -7,13 +7,17 @@ mod error;
 mod info;
 mod load;
 pub mod mesh_io;
+pub mod procedural;
 pub mod shapes;
 pub mod transform;
 
 pub use builtin::{builtin_cornell_box, CORNELL_BOX_TOML};
 pub use error::SceneError;
 pub use info::{material_kind, scene_info, ImageEnvironmentFeature, MemoryEstimate, SceneFeatures, SceneInfo};
-pub use load::{load_scene, load_scene_str, LoadedScene, RenderDesc, DEFAULT_IOR, DEFAULT_ROUGHNESS};
+pub use load::{
+    load_scene, load_scene_str, load_scene_str_with_meshes, LoadedScene, MeshShape, RenderDesc, DEFAULT_IOR,
+    DEFAULT_ROUGHNESS,
+};
 
 use std::path::PathBuf;
 use std::sync::Arc;

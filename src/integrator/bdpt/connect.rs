@@ -9,12 +9,12 @@
 
 use glam::Vec2;
 
+use crate::sampling::UniformSource;
 use crate::scene::Scene;
 use crate::spectrum::{is_black, Rgb};
 use crate::stats::Counters;
 
 use super::mis::{density_ratios, weight_from_ratios, weights_from_ratios, ConnectionView};
-use super::subpath::PathSampler;
 use super::vertex::{geometry_term, Vertex, VertexKind};
 use super::BdptContext;
 
@@ -57,7 +57,7 @@ pub struct ConnectScratch {
 /// are counted in `counters`). When `alternatives` is given it receives, at index i, the weight of
 /// the technique with i light vertices for the same path (index s is this technique's weight).
 #[allow(clippy::too_many_arguments)]
-pub fn evaluate_technique<S: PathSampler>(
+pub fn evaluate_technique<S: UniformSource>(
     ctx: &BdptContext,
     light: &[Vertex],
     camera: &[Vertex],

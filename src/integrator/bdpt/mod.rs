@@ -28,15 +28,15 @@ use serde::{Deserialize, Serialize};
 pub use connect::{evaluate_technique, mutually_visible, ConnectScratch, TechniqueSample};
 pub use mis::MisHeuristic;
 pub use subpath::{
-    generate_camera_subpath, generate_light_subpath, FilmRegion, PathSampler, ReplaySampler, BOUNCE_DIMS,
-    CAMERA_FILM_DIMS, CONNECTION_DIMS, LIGHT_START_DIMS,
+    generate_camera_subpath, generate_light_subpath, FilmRegion, BOUNCE_DIMS, CAMERA_FILM_DIMS, CONNECTION_DIMS,
+    LIGHT_START_DIMS,
 };
 pub use vertex::{Vertex, VertexKind};
 
 use super::driver::{ImageRender, ImageRun};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::film::{Accumulator, SplatBuffer};
-use crate::sampling::Rng;
+use crate::sampling::{Rng, UniformSource};
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
 use crate::stats::Counters;
@@ -221,7 +221,7 @@ impl Bdpt {
 /// sample and PSSMLT's path contribution (MMLT paper Alg. 1, COMBINE); s = 1 techniques read
 /// `CONNECTION_DIMS` numbers each from `connection`, in increasing t.
 #[allow(clippy::too_many_arguments)]
-pub fn connect_all<S: PathSampler>(
+pub fn connect_all<S: UniformSource>(
     ctx: &BdptContext,
     light: &[Vertex],
     camera: &[Vertex],

@@ -1,4 +1,5 @@
-//! Camera and light subpath generation, driven by explicit uniforms read from a `PathSampler`.
+//! Camera and light subpath generation, driven by explicit uniforms read from a
+//! `sampling::UniformSource` (an independent `Rng`, a replayed list, or a primary-sample-space chain).
 //!
 //! # Dimension layout (each subpath reads its own stream)
 //!
@@ -20,10 +21,9 @@
 use glam::{UVec2, Vec2};
 
 use crate::camera::CAMERA_SAMPLE_DIMS;
-use crate::integrator::pss::PssSampler;
 use crate::light::EMISSION_SAMPLE_DIMS;
 use crate::material::{TransportMode, BSDF_SAMPLE_DIMS};
-use crate::sampling::Rng;
+use crate::sampling::UniformSource;
 use crate::spectrum::{luminance, Rgb};
 use crate::stats::Counters;
 
@@ -39,57 +39,6 @@ pub const LIGHT_START_DIMS: usize = 1 + EMISSION_SAMPLE_DIMS;
 /// Dimensions one `s = 1` connection reads from the connection stream.
 pub const CONNECTION_DIMS: usize = 1 + crate::light::LI_SAMPLE_DIMS;
 
-/// A source of uniform numbers in [0, 1) for one stream. Independent sampling (`Rng`) and
-/// Kelemen's primary-sample-space chain (`PssSampler`, reading its current stream) both drive the
-/// same subpath code through it.
-pub trait PathSampler {
-    fn next_1d(&mut self) -> f32;
-    fn next_2d(&mut self) -> [f32; 2] {
-        [self.next_1d(), self.next_1d()]
-    }
-    /// The next `N` numbers, in order.
-    fn next_n<const N: usize>(&mut self) -> [f32; N]
-    where
-        Self: Sized,
-    {
-        let mut u = [0.0; N];
-        for x in &mut u {
-            *x = self.next_1d();
-        }
-        u
-    }
-}
-
-impl PathSampler for Rng {
-    #[inline]
-    fn next_1d(&mut self) -> f32 {
-        self.uniform()
-    }
-}
-
-impl PathSampler for PssSampler {
-    #[inline]
-    fn next_1d(&mut self) -> f32 {
-        PssSampler::next_1d(self)
-    }
-}
-
-/// A recorded or prescribed list of numbers (tests, replays, inverted samples); past its end it
-/// reads 0.5 so that a short list still yields a deterministic path.
-#[derive(Clone, Debug, Default)]
-pub struct ReplaySampler {
-    pub values: Vec<f32>,
-    pub position: usize,
-}
-
-impl PathSampler for ReplaySampler {
-    fn next_1d(&mut self) -> f32 {
-        let v = self.values.get(self.position).copied().unwrap_or(0.5);
-        self.position += 1;
-        v
-    }
-}
-
 /// Where the camera subpath's film sample lands.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FilmRegion {
@@ -103,7 +52,7 @@ pub enum FilmRegion {
 /// and returns the continuous raster position of its primary ray. The camera vertex has
 /// throughput 1: for a pinhole, W_e·cos / (pdf_pos·pdf_dir) = 1 for film positions drawn uniformly
 /// (pbrt-v4 Sec. 16.1.1), per pixel or over the whole film alike.
-pub fn generate_camera_subpath<S: PathSampler>(
+pub fn generate_camera_subpath<S: UniformSource>(
     ctx: &BdptContext,
     region: FilmRegion,
     sampler: &mut S,
@@ -133,7 +82,7 @@ pub fn generate_camera_subpath<S: PathSampler>(
 /// Fills `path` with a light subpath of at most `max_vertices` vertices (the emitter point
 /// included). Returns false (and an empty path) when the scene has no emitter or the emission
 /// sample failed.
-pub fn generate_light_subpath<S: PathSampler>(
+pub fn generate_light_subpath<S: UniformSource>(
     ctx: &BdptContext,
     sampler: &mut S,
     max_vertices: usize,
@@ -216,7 +165,7 @@ fn push_with_densities(scene: &crate::scene::Scene, path: &mut Vec<Vertex>, mut 
 /// `max_new` vertices have been added, the ray escapes, a BSDF sample fails or Russian roulette
 /// stops it.
 #[allow(clippy::too_many_arguments)]
-fn random_walk<S: PathSampler>(
+fn random_walk<S: UniformSource>(
     ctx: &BdptContext,
     mut ray: crate::geometry::Ray,
     sampler: &mut S,
@@ -271,18 +220,5 @@ fn random_walk<S: PathSampler>(
             return;
         }
         ray = si.spawn(wi);
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn replay_sampler_reads_in_order_then_half() {
-        let mut r = ReplaySampler { values: vec![0.1, 0.2], position: 0 };
-        assert_eq!(r.next_2d(), [0.1, 0.2]);
-        assert_eq!(r.next_1d(), 0.5);
-        assert_eq!(r.position, 3);
     }
 }

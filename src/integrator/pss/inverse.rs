@@ -357,10 +357,11 @@ mod tests {
     use crate::integrator::bdpt::path::{full_path, split_path};
     use crate::integrator::bdpt::{
         evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch, FilmRegion,
-        MisHeuristic, ReplaySampler,
+        MisHeuristic,
     };
     use crate::integrator::pss::jump::{jump_acceptance, JumpSide};
     use crate::material::{Material, DIELECTRIC_REFLECT, DIELECTRIC_REFRACT};
+    use crate::sampling::ReplaySampler;
     use crate::spectrum::luminance;
     use crate::stats::Counters;
 

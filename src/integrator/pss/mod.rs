@@ -6,6 +6,8 @@ pub mod mlt;
 pub mod sampler;
 pub mod settings;
 pub mod stats;
+/// Test-only: the 1D reversible-jump validation chains (behind the `testing` feature).
+#[cfg(any(test, feature = "testing"))]
 pub mod validation_1d;
 
 pub use sampler::{MutationSettings, PssSampler, SmallStep};

@@ -17,7 +17,7 @@
 //! one (exact; the cost is bounded by the accepted iterations since the coordinate was last read,
 //! and a coordinate older than the last accepted large step is redrawn instead).
 
-use crate::sampling::Rng;
+use crate::sampling::{Rng, UniformSource};
 
 /// One coordinate of the state, with what is needed to undo the last mutation.
 #[derive(Clone, Copy, Debug)]
@@ -56,7 +56,7 @@ impl SmallStep {
     /// One perturbation Δ (before wrapping).
     fn sample(self, rng: &mut Rng) -> f64 {
         match self {
-            SmallStep::Gaussian { sigma } => standard_normal(rng) * sigma,
+            SmallStep::Gaussian { sigma } => rng.standard_normal() * sigma,
             SmallStep::Exponential { s1, s2 } => {
                 let magnitude = s2 * (-(s2 / s1).ln() * rng.uniform_f64()).exp();
                 if rng.uniform_f64() < 0.5 {
@@ -72,7 +72,7 @@ impl SmallStep {
     fn sample_sum(self, n: u64, rng: &mut Rng) -> f64 {
         match self {
             // A sum of n independent N(0, σ²) is N(0, nσ²).
-            SmallStep::Gaussian { sigma } => standard_normal(rng) * sigma * (n as f64).sqrt(),
+            SmallStep::Gaussian { sigma } => rng.standard_normal() * sigma * (n as f64).sqrt(),
             SmallStep::Exponential { .. } => (0..n).map(|_| self.sample(rng)).sum(),
         }
     }
@@ -250,11 +250,12 @@ impl PssSampler {
     }
 }
 
-/// A standard normal deviate (Box–Muller, one of the pair).
-fn standard_normal(rng: &mut Rng) -> f64 {
-    let u1 = 1.0 - rng.uniform_f64(); // in (0, 1]
-    let u2 = rng.uniform_f64();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+/// The chain drives the same subpath code as independent sampling, reading its current stream.
+impl UniformSource for PssSampler {
+    #[inline]
+    fn next_1d(&mut self) -> f32 {
+        PssSampler::next_1d(self)
+    }
 }
 
 #[cfg(test)]
@@ -417,8 +418,8 @@ mod tests {
                     } else {
                         // A clamped perturbation: biased towards the borders.
                         let old = (s.samples[0].value, s.samples[1].value);
-                        let du = standard_normal(&mut rng) * 0.05;
-                        let dv = standard_normal(&mut rng) * 0.05;
+                        let du = rng.standard_normal() * 0.05;
+                        let dv = rng.standard_normal() * 0.05;
                         let nu = (old.0 + du).clamp(0.0, 1.0 - 1e-9);
                         let nv = (old.1 + dv).clamp(0.0, 1.0 - 1e-9);
                         s.put(0, 0, nu as f32);

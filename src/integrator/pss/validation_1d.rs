@@ -10,7 +10,7 @@
 //! Correct chains have the stationary joint law f(x)·w_i(x)/∫f over (position, technique): the
 //! position histogram follows the target and technique usage at x equals the MIS weights.
 
-use crate::sampling::Distribution1D;
+use crate::sampling::{Distribution1D, Rng};
 
 use super::jump::{jump_acceptance, JumpSide};
 
@@ -273,33 +273,33 @@ pub fn run_chain(
     steps: usize,
     sigma: f64,
     jump_probability: f64,
-    mut uniform: impl FnMut() -> f64,
+    rng: &mut Rng,
     stats: &mut JumpStats,
 ) {
     for _ in 0..steps {
-        let jump = variant != Variant::Multiplexed && uniform() < jump_probability;
+        let jump = variant != Variant::Multiplexed && rng.uniform_f64() < jump_probability;
         if !jump {
             let u =
-                [perturb(state.u[0], sigma, normal(&mut uniform)), perturb(state.u[1], sigma, normal(&mut uniform))];
+                [perturb(state.u[0], sigma, rng.standard_normal()), perturb(state.u[1], sigma, rng.standard_normal())];
             let (u_t, technique) = if variant == Variant::Multiplexed {
-                let u_t = perturb(state.u_t, sigma, normal(&mut uniform));
+                let u_t = perturb(state.u_t, sigma, rng.standard_normal());
                 (u_t, ((u_t * TECHNIQUES as f64) as usize).min(TECHNIQUES - 1))
             } else {
                 (state.u_t, state.technique)
             };
             let (x, value) = t.state_target(technique, u);
             // Eq. 20: a = target(proposal) / target(current) for symmetric mutations.
-            if uniform() * state.value < value {
+            if rng.uniform_f64() * state.value < value {
                 *state = ChainState { u, u_t, technique, x, value };
             }
             continue;
         }
         // Technique jump: j with probability w_j(x) (Eq. 33's optimal proposal).
         let x = state.x;
-        let j = t.choose_by_mis_weight(x, uniform());
+        let j = t.choose_by_mis_weight(x, rng.uniform_f64());
         let handling =
             if variant == Variant::JumpFixedPoint { AmbiguityHandling::Midpoint } else { AmbiguityHandling::Uniform };
-        let Some(inv) = t.invert(j, x, [uniform(), uniform(), uniform()], handling) else {
+        let Some(inv) = t.invert(j, x, [rng.uniform_f64(), rng.uniform_f64(), rng.uniform_f64()], handling) else {
             continue;
         };
         let (x_new, value_new) = t.state_target(j, inv.u);
@@ -327,18 +327,11 @@ pub fn run_chain(
             stats.jumps += 1;
             stats.max_deviation_from_one = stats.max_deviation_from_one.max((r - 1.0).abs());
         }
-        if uniform() < r {
-            let u_t = (j as f64 + uniform()) / TECHNIQUES as f64;
+        if rng.uniform_f64() < r {
+            let u_t = (j as f64 + rng.uniform_f64()) / TECHNIQUES as f64;
             *state = ChainState { u: inv.u, u_t, technique: j, x: x_new, value: value_new };
         }
     }
-}
-
-/// A standard normal deviate (Box–Muller).
-fn normal(uniform: &mut impl FnMut() -> f64) -> f64 {
-    let u1 = 1.0 - uniform();
-    let u2 = uniform();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
 #[cfg(test)]
@@ -369,9 +362,8 @@ mod tests {
             [0.0, 3.0],
             seed,
             |rng| {
-                let mut uniform = || rng.uniform_f64();
-                let mut state = exact_state(&t, &mut uniform);
-                run_chain(&t, variant, &mut state, STEPS, SIGMA, JUMP_PROBABILITY, &mut uniform, &mut stats);
+                let mut state = exact_state(&t, || rng.uniform_f64());
+                run_chain(&t, variant, &mut state, STEPS, SIGMA, JUMP_PROBABILITY, rng, &mut stats);
                 Some([state.x, state.technique as f64 + 0.5])
             },
             |p| {
