@@ -59,7 +59,9 @@ fn bdpt_agrees_with_pt_on_cornell_box() {
 
 #[test]
 fn bdpt_agrees_with_pt_on_cornell_glossy() {
-    bdpt_agrees_with_pt("cornell-glossy", 32, 32, 8);
+    // 16 BDPT spp: at 8, BDPT's own standard error of the image mean (1.25e-3) nearly used up the
+    // 1.3e-3 the power check allows, so PT's share decided the check by its seeds' luck.
+    bdpt_agrees_with_pt("cornell-glossy", 32, 32, 16);
 }
 
 #[test]
