@@ -32,7 +32,9 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 mod common;
-use common::agreement::{assert_agree, assert_brightness_agrees, assert_shares_agree, estimate, render_regions, RENDERS};
+use common::agreement::{
+    assert_agree, assert_brightness_agrees, assert_shares_agree, estimate, render_regions, RENDERS,
+};
 
 use plexus::camera::Camera;
 use plexus::film::Image;

@@ -20,6 +20,8 @@ pub struct RayPre {
     /// preserve the winding for back-face culling; this test is two-sided, and the swap would only
     /// flip the signs of U, V, W and T together, so it is left out.
     pub kz: usize,
+    /// The direction as given, for the double-precision distance of [`plane_distance_f64`].
+    d: Vec3,
     /// Shear constants (Sx, Sy, Sz) = (dx/dz, dy/dz, 1/dz) in the permuted frame.
     s: [f32; 3],
 }
@@ -62,6 +64,7 @@ impl RayPre {
             inv_d: Vec3::ONE / d,
             neg: [d.x.is_sign_negative(), d.y.is_sign_negative(), d.z.is_sign_negative()],
             kz,
+            d,
             s,
         })
     }
@@ -163,11 +166,17 @@ pub fn intersect_triangle_k<const KZ: usize>(
     if !(t >= t_min && t <= t_max) {
         return None;
     }
-    // Reject hits whose t is not provably positive: without this, a ray spawned from a surface can
-    // re-hit that surface at t ≈ 1e-6 (seen as false shadow-ray occlusion on the Cornell box's
-    // walls, where Embree reported none). δt bounds the rounding error of t from the magnitudes
-    // of the transformed vertices and edge functions (pbrt-v4 Sec. 6.8.4, "Conservative
-    // ray–triangle t").
+    // A hit whose t is not provably positive in f32 is decided in double precision. Without this, a
+    // ray spawned from a surface can re-hit that surface at t ≈ 1e-6 (seen as false shadow-ray
+    // occlusion on the Cornell box's walls, where Embree reported none): its origin is offset to the
+    // front of the surface past the hit point's error bound, so the exact t is ≤ 0, but f32 rounding
+    // made it positive. δt bounds the rounding error of t from the magnitudes of the transformed
+    // vertices and edge functions (pbrt-v4 Sec. 6.8.4, "Conservative ray–triangle t"). It is loose for
+    // large triangles seen at grazing angles: on the Cornell box's 556 × 549 wall it was 0.20 for a
+    // real hit at t = 0.18, and rejecting every t ≤ δt let that ray through the wall. pbrt can afford
+    // the rejection because its offsets keep real hits beyond δt; here the sign of t is the question,
+    // and f64 answers it: products and sums of f32 values carry ~1e-16 relative error, so the sign is
+    // right unless the origin lies within ~1e-13 of the triangle's plane.
     let max_zt = az.abs().max(bz.abs()).max(cz.abs()) * sz.abs();
     let max_xt = ax.abs().max(bx.abs()).max(cx.abs());
     let max_yt = ay.abs().max(by.abs()).max(cy.abs());
@@ -178,9 +187,31 @@ pub fn intersect_triangle_k<const KZ: usize>(
     let max_e = u.abs().max(v.abs()).max(w.abs());
     let delta_t = 3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
     if t <= delta_t {
-        return None;
+        let exact = plane_distance_f64(pre.o, pre.d, v0, v1, v2);
+        if !(exact > 0.0 && exact >= t_min as f64 && exact <= t_max as f64) {
+            return None;
+        }
+        return Some((exact as f32, v * inv_det, w * inv_det));
     }
     Some((t, v * inv_det, w * inv_det))
+}
+
+/// The ray parameter t at which `o + t·d` meets the plane of `(v0, v1, v2)`, in double precision:
+/// t = n·(v0 − o) / n·d with n = (v1 − v0) × (v2 − v0). Differences of f32 values are exact in f64,
+/// so only the products round. NaN when the ray is parallel to the plane.
+#[inline(never)]
+fn plane_distance_f64(o: Vec3, d: Vec3, v0: Vec3, v1: Vec3, v2: Vec3) -> f64 {
+    let f = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let (o, d, v0, v1, v2) = (f(o), f(d), f(v0), f(v1), f(v2));
+    let (e1, e2) = (sub(v1, v0), sub(v2, v0));
+    let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+    let denom = dot(n, d);
+    if denom == 0.0 {
+        return f64::NAN;
+    }
+    dot(n, sub(v0, o)) / denom
 }
 
 /// `max(x, acc)` that keeps `acc` when `x` is NaN (`acc` is never NaN). One `maxss` on x86.
@@ -285,6 +316,31 @@ mod tests {
         for p in [Vec3::ZERO, Vec3::new(4.0, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 2.0, 0.0)] {
             let ray = Ray::new(p + Vec3::Z, -Vec3::Z);
             assert!(hit(&ray, tri).is_some(), "{p}");
+        }
+    }
+
+    /// A real hit inside f32's error bound δt is kept, a re-hit of the surface a ray was spawned from
+    /// is not. The first ray is the one `tests/pt.rs`'s Embree/BVH comparison caught on the Cornell
+    /// box: a grazing hit on the 556 × 549 red wall at t = 0.1766, where δt = 0.20. Rejecting every
+    /// t ≤ δt (the code before) missed it and the path escaped through the wall.
+    #[test]
+    fn hits_within_the_rounding_bound_are_decided_in_double_precision() {
+        let wall = [Vec3::new(556.0, 0.0, 0.0), Vec3::new(556.0, 0.0, 559.2), Vec3::new(556.0, 548.8, 559.2)];
+        let wall2 = [wall[0], wall[2], Vec3::new(556.0, 548.8, 0.0)];
+        let o = Vec3::new(5.5599854e2, 5.487997e2, 2.9819452e2);
+        let d = Vec3::new(8.289657e-3, -7.8739053e-1, 6.1639875e-1);
+        let ray = Ray::new(o, d);
+        let found = hit(&ray, wall).or_else(|| hit(&ray, wall2));
+        let (t, _, _) = found.expect("the grazing ray hits the wall");
+        let expected = (556.0 - o.x as f64) / d.x as f64;
+        assert!((t as f64 - expected).abs() < 1e-3 * expected, "t = {t}, expected {expected}");
+        // A ray leaving a surface, its origin offset to the front by the spawn rule, does not hit it.
+        let tri = [Vec3::new(-300.0, -300.0, 0.0), Vec3::new(300.0, -300.0, 0.0), Vec3::new(0.0, 300.0, 0.0)];
+        for (i, dz) in [1e-4f32, 1e-2, 0.3, 1.0].into_iter().enumerate() {
+            let p = Vec3::new(12.345 + i as f32, -7.25, 0.0);
+            let leaving =
+                crate::geometry::spawn_ray(p, Vec3::splat(1e-5), Vec3::Z, Vec3::new(0.7, 0.1, dz).normalize());
+            assert!(hit(&leaving, tri).is_none(), "self-hit for dz = {dz}");
         }
     }
 
