@@ -15,9 +15,10 @@
 //!   I_j = n_d · b_d · P · E_π[ 1_j(raster) · ŵ_t C_t / f̂_d ],
 //! where P is the pixel count (the film position is uniform over the whole film) and n_d the
 //! number of techniques u_t spreads over (the paper's factor k+2, Sec. 4 "Accumulation"). Each
-//! depth's splats go to their own image (see "Films and threads"), divided at the end by the number
-//! of iterations that depth received; this equals the paper's 1/p(k) scaling in expectation and lets b_d be refined from
-//! the large steps (uniform samples) during the render without re-weighting earlier splats.
+//! depth's splats go to their own image (see "Films and threads"), divided at the end by the
+//! number of iterations that depth received; this equals the paper's 1/p(k) scaling in expectation
+//! and lets b_d be refined from the large steps (uniform samples) during the render without
+//! re-weighting earlier splats.
 //! PSSMLT is the special case of one "depth" with n = 1.
 //!
 //! # Reversible-jump MLT
@@ -41,6 +42,11 @@
 //! seed and the chain count, not on the thread count. The technique count layers (a debug output,
 //! off by default) stay per slot, merged in slot order: they hold integer counts (sums of 1.0,
 //! exact in f64 below 2^53), which any merge order gives bit for bit.
+//! The cost is memory: a pass (about one mutation per pixel) holds all its splats until it ends,
+//! 16 bytes each, the proposal's and, when a < 1, the current state's: MMLT and RJMLT about two
+//! per mutation (66 MB a pass at 1920×1080), PSSMLT one per contributing technique of both, so
+//! several times that. The one film is W·H·D·24 bytes, where the per-slot films were that per
+//! thread.
 //!
 //! # Expected values
 //! Each iteration splats the proposal with weight a and the current state with 1 − a (Veach's
@@ -760,7 +766,8 @@ impl Mlt {
         let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
         let pixels = (width * height) as u64;
         let depths = self.depth_count();
-        // The driver's film stacks the depths' images (module docs, "Films and threads").
+        // The driver's film stacks the depths' images (module docs, "Films and threads"); the
+        // driver refuses it beyond 2^32 pixels, and a stack beyond 2^32 rows is reported as that.
         let stacked_height = u32::try_from(height as u64 * depths as u64)
             .map_err(|_| RenderError::FilmTooLarge { width: scene.camera.width, height: u32::MAX })?;
         let driver = Driver::new(job, width as u32, stacked_height)?;
