@@ -33,9 +33,10 @@
 //! owns [`Counters`] (integer sums, so their merge does not depend on the dealing) and the
 //! integrator's per-slot state `S` (scratch buffers; statistics). Per-slot state is created once per
 //! slot and returned in slot order; it must not carry anything the image depends on, or the image
-//! would depend on the dealing again — what a unit's future depends on belongs in the unit. Every worker thread sets flush-to-zero / denormals-are-zero in its
-//! start handler (Embree wants it, and it keeps both accelerators' arithmetic identical), and every
-//! item runs inside the pool, so no ray is traced from a thread without the flags.
+//! would depend on the dealing again — what a unit's future depends on belongs in the unit. Every
+//! worker thread sets flush-to-zero / denormals-are-zero in its start handler (Embree wants it, and
+//! it keeps both accelerators' arithmetic identical), and every item runs inside the pool, so no
+//! ray is traced from a thread without the flags.
 //!
 //! # Budgets and the clock
 //!
