@@ -198,6 +198,21 @@ impl SplatBuffer {
             None => false,
         }
     }
+    /// Records `value` for the pixel containing the raster position of a `width`×`layer_height`
+    /// image stacked as rows [layer·layer_height, (layer+1)·layer_height) of this buffer's film
+    /// (MLT's per-depth images); positions off that image are ignored, never moved into a
+    /// neighbouring layer. Returns whether it landed.
+    #[inline]
+    pub fn splat_in_layer(&mut self, raster: Vec2, layer: usize, layer_height: usize, value: Rgb) -> bool {
+        debug_assert!((layer + 1) * layer_height <= self.height && crate::spectrum::is_finite(value));
+        match pixel_of(raster, self.width, layer_height) {
+            Some(index) => {
+                self.splats.push(((layer * layer_height * self.width + index) as u32, value));
+                true
+            }
+            None => false,
+        }
+    }
     /// Number of recorded contributions.
     pub fn len(&self) -> usize {
         self.splats.len()
@@ -224,6 +239,21 @@ mod tests {
         assert!(!a.splat(Vec2::new(f32::NAN, 1.0), Rgb::ONE));
         let img = a.to_image(1.0);
         assert_eq!(img.get(2, 1), Rgb::ONE);
+        assert_eq!(img.pixels.iter().map(|p| p.x).sum::<f32>(), 1.0);
+    }
+
+    /// A layer splat lands in its layer's rows; a position below the layer's image is dropped, not
+    /// moved into the next layer (which a plain `splat` at y + layer·height would do).
+    #[test]
+    fn layer_splat_stays_in_its_layer() {
+        let mut buffer = SplatBuffer::new(4, 9);
+        assert!(buffer.splat_in_layer(Vec2::new(2.5, 1.2), 1, 3, Rgb::ONE));
+        assert!(!buffer.splat_in_layer(Vec2::new(2.5, 3.0), 1, 3, Rgb::ONE));
+        assert!(!buffer.splat_in_layer(Vec2::new(-0.5, 1.0), 2, 3, Rgb::ONE));
+        let mut film = Accumulator::new(4, 9);
+        film.apply(&buffer);
+        let img = film.to_image(1.0);
+        assert_eq!(img.get(2, 4), Rgb::ONE);
         assert_eq!(img.pixels.iter().map(|p| p.x).sum::<f32>(), 1.0);
     }
 

@@ -33,11 +33,10 @@
 //! owns [`Counters`] (integer sums, so their merge does not depend on the dealing) and the
 //! integrator's per-slot state `S` (scratch buffers; statistics). Per-slot state is created once per
 //! slot and returned in slot order; it must not carry anything the image depends on, or the image
-//! would depend on the dealing again — what a unit's future depends on belongs in the unit. (MLT's
-//! films still live in its per-slot state, so its image still depends on the thread count until they
-//! move into the units' buffers.) Every worker thread sets flush-to-zero / denormals-are-zero in its
-//! start handler (Embree wants it, and it keeps both accelerators' arithmetic identical), and every
-//! item runs inside the pool, so no ray is traced from a thread without the flags.
+//! would depend on the dealing again — what a unit's future depends on belongs in the unit. Every
+//! worker thread sets flush-to-zero / denormals-are-zero in its start handler (Embree wants it, and
+//! it keeps both accelerators' arithmetic identical), and every item runs inside the pool, so no
+//! ray is traced from a thread without the flags.
 //!
 //! # Budgets and the clock
 //!
@@ -56,6 +55,10 @@
 //!   driver hands back mutably to the kernel on every pass and returns at the end; an item is a
 //!   chain *segment* of a fixed number of mutations. The chain keeps its own
 //!   `Rng::new(seed, chain)` and may ignore the item stream. A time budget just runs more segments.
+//!   Images that are normalised separately share the one film as layers: MLT's per-depth images
+//!   are rows [d·H, (d+1)·H) of a W × (H·D) film (`SplatBuffer::splat_in_layer`), each scaled by
+//!   its own b_d / iterations only at output, so its image too depends on the seed and the chain
+//!   count only, not on the threads.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};

@@ -15,9 +15,10 @@
 //!   I_j = n_d · b_d · P · E_π[ 1_j(raster) · ŵ_t C_t / f̂_d ],
 //! where P is the pixel count (the film position is uniform over the whole film) and n_d the
 //! number of techniques u_t spreads over (the paper's factor k+2, Sec. 4 "Accumulation"). Each
-//! depth's splats go to their own film, divided at the end by the number of iterations that depth
-//! received; this equals the paper's 1/p(k) scaling in expectation and lets b_d be refined from
-//! the large steps (uniform samples) during the render without re-weighting earlier splats.
+//! depth's splats go to their own image (see "Films and threads"), divided at the end by the
+//! number of iterations that depth received; this equals the paper's 1/p(k) scaling in expectation
+//! and lets b_d be refined from the large steps (uniform samples) during the render without
+//! re-weighting earlier splats.
 //! PSSMLT is the special case of one "depth" with n = 1.
 //!
 //! # Reversible-jump MLT
@@ -30,6 +31,22 @@
 //! that state and accept with Eq. 38/43 (`jump.rs`), which is 1 up to rounding when the inverse
 //! reproduces x̄. A path that cannot be inverted, or whose inverse does not reproduce it, is
 //! rejected and counted.
+//!
+//! # Films and threads
+//! The depths' images are layers of the driver's one film: depth d is rows [d·H, (d+1)·H) of a
+//! W × (H·D) film (one layer for PSSMLT), written through the chain unit's `SplatBuffer`, which
+//! the driver applies in unit order (`integrator::driver`). The normalisation reads that film, the
+//! large-step totals summed over the units in unit order (b_d) and the depths' iteration counts
+//! (integers), at output and for previews alike; the depth choice of a pass pools the previous
+//! pass's totals in unit order too (`PooledLargeSteps`). So the image, bit for bit, depends on the
+//! seed and the chain count, not on the thread count. The technique count layers (a debug output,
+//! off by default) stay per slot, merged in slot order: they hold integer counts (sums of 1.0,
+//! exact in f64 below 2^53), which any merge order gives bit for bit.
+//! The cost is memory: a pass (about one mutation per pixel) holds all its splats until it ends,
+//! 16 bytes each, the proposal's and, when a < 1, the current state's: MMLT and RJMLT about two
+//! per mutation (66 MB a pass at 1920×1080), PSSMLT one per contributing technique of both, so
+//! several times that. The one film is W·H·D·24 bytes, where the per-slot films were that per
+//! thread.
 //!
 //! # Expected values
 //! Each iteration splats the proposal with weight a and the current state with 1 − a (Veach's
@@ -45,13 +62,13 @@ use super::jump::{jump_acceptance, JumpSide};
 use super::sampler::{MutationSettings, PssSampler};
 use super::settings::{MltSettings, MltVariant};
 use super::stats::{MltStats, MoveKind, MoveStats};
-use crate::film::{Accumulator, Image};
+use crate::film::{Accumulator, Image, SplatBuffer};
 use crate::integrator::bdpt::path::full_path;
 use crate::integrator::bdpt::{
     connect_all, evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch,
     FilmRegion, Vertex,
 };
-use crate::integrator::driver::{Driver, PassBoundary, Passes};
+use crate::integrator::driver::{Driver, PassBoundary, Passes, Slot};
 use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::{Distribution1D, Rng};
 use crate::scene::Scene;
@@ -157,16 +174,25 @@ struct PooledLargeSteps {
     choice: Mutex<Option<(u64, Arc<Distribution1D>)>>,
 }
 
-/// Per-slot buffers, films and statistics.
+/// Per-slot scratch buffers and statistics. The image is not here: it is in the driver's film,
+/// written through each chain unit's buffer (module docs, "Films and threads").
 struct SlotState {
     camera: Vec<Vertex>,
     light: Vec<Vertex>,
     scratch: ConnectScratch,
-    /// One film per depth (MMLT) or one (PSSMLT).
-    films: Vec<Accumulator>,
-    /// MMLT with count layers: per (depth, s) an image of state counts.
+    /// MMLT and RJMLT with count layers (a debug output, off by default): per (depth, s) an image
+    /// of state counts, merged in slot order (integer sums, exact in f64: the order does not show).
     count_films: Option<Vec<Vec<Accumulator>>>,
     stats: MltStats,
+}
+
+/// What [`Mlt::render_run`] produced.
+pub struct MltRun {
+    pub output: RenderOutput,
+    /// The driver's film of unnormalised splat sums, every chain unit applied in unit order: a
+    /// width × (height · D) film whose rows [d·height, (d+1)·height) are depth d's image (D = 1
+    /// for PSSMLT). Each depth is normalised by its own b_d / iterations at output.
+    pub film: Accumulator,
 }
 
 impl Mlt {
@@ -323,7 +349,6 @@ impl Mlt {
             camera: Vec::new(),
             light: Vec::new(),
             scratch: ConnectScratch::default(),
-            films: vec![Accumulator::new(width, height); depths],
             count_films: (self.settings.technique_count_layers && self.variant != MltVariant::Pssmlt)
                 .then(|| (0..depths).map(|d| vec![Accumulator::new(width, height); self.technique_count(d)]).collect()),
             stats: MltStats::new(
@@ -335,48 +360,74 @@ impl Mlt {
         }
     }
 
-    /// The image of the slots' per-depth films (Sec. "Normalisation" above): depth d scaled by
-    /// n_d · b_d · P / (iterations of depth d), with b_d from the bootstrap and, with
-    /// `progressive_b`, every large step so far. Returns the b_d used. Serves the final image and
-    /// the previews during the render alike.
+    /// The image of the driver's stacked per-depth film (module docs, "Normalisation"): depth d
+    /// (rows [d·H, (d+1)·H)) scaled by n_d · b_d · P / (iterations of depth d), with b_d from the
+    /// bootstrap and, with `progressive_b`, the large steps so far (`large_steps`, pooled in unit
+    /// order). Returns the b_d used. Serves the final image and the previews during the render
+    /// alike.
     fn normalised_image(
         &self,
-        slots: &[&SlotState],
+        film: &Accumulator,
+        large_steps: &LargeStepTotals,
+        iterations: &[u64],
         bootstrap: &Bootstrap,
-        width: usize,
-        height: usize,
     ) -> (Image, Vec<f64>) {
-        let pixels = (width * height) as f64;
-        let mut total = Accumulator::new(width, height);
-        let mut b = Vec::with_capacity(self.depth_count());
-        for d in 0..self.depth_count() {
-            let (mut sum, mut n, mut iterations) = (0.0, 0, 0);
-            for slot in slots {
-                let depth = &slot.stats.per_depth[d];
-                sum += depth.large_step_target_sum;
-                n += depth.large_steps;
-                iterations += depth.iterations;
-            }
+        let depths = self.depth_count();
+        let (width, height) = (film.width, film.height / depths);
+        let pixels = width * height;
+        let mut total = vec![[0.0f64; 3]; pixels];
+        let mut b = Vec::with_capacity(depths);
+        for d in 0..depths {
             let b_d = if self.settings.progressive_b {
+                let (sum, n) = large_steps[d];
                 (bootstrap.sums[d] + sum) / (bootstrap.paths + n) as f64
             } else {
                 bootstrap.sums[d] / bootstrap.paths as f64
             };
             b.push(b_d);
-            if iterations == 0 {
+            if iterations[d] == 0 {
                 continue;
             }
-            let scale = self.technique_count(d) as f64 * b_d * pixels / iterations as f64;
-            for slot in slots {
-                total.merge_scaled(&slot.films[d], scale);
+            let scale = self.technique_count(d) as f64 * b_d * pixels as f64 / iterations[d] as f64;
+            let layer = &film.sums()[d * pixels..(d + 1) * pixels];
+            for (t, s) in total.iter_mut().zip(layer) {
+                t[0] += s[0] * scale;
+                t[1] += s[1] * scale;
+                t[2] += s[2] * scale;
             }
         }
-        (total.to_image(1.0), b)
+        let pixels = total.iter().map(|s| Rgb::new(s[0] as f32, s[1] as f32, s[2] as f32)).collect();
+        (Image { width, height, pixels }, b)
+    }
+
+    /// Per depth, the sum and count of every large-step target of the chains so far, pooled in
+    /// unit order (so not depending on the threads), for b_d.
+    fn large_step_totals(&self, units: &[ChainUnit]) -> LargeStepTotals {
+        let mut totals = vec![(0.0, 0); self.depth_count()];
+        for unit in units {
+            for (total, own) in totals.iter_mut().zip(&unit.large_steps) {
+                total.0 += own.0;
+                total.1 += own.1;
+            }
+        }
+        totals
+    }
+
+    /// Per depth, the iterations the slots ran (integer sums: any order gives them).
+    fn iteration_counts<'s>(&self, slots: impl Iterator<Item = &'s SlotState>) -> Vec<u64> {
+        let mut iterations = vec![0; self.depth_count()];
+        for slot in slots {
+            for (n, depth) in iterations.iter_mut().zip(&slot.stats.per_depth) {
+                *n += depth.iterations;
+            }
+        }
+        iterations
     }
 
     /// One Metropolis iteration of sub-chain `d`: a large or small step of the primary samples
     /// (all methods), or for RJMLT, with probability `jump_probability`, a technique jump. Returns
     /// the proposal's target if it was a large step (a uniform sample, for b_d).
+    #[allow(clippy::too_many_arguments)]
     fn iterate(
         &self,
         ctx: &BdptContext,
@@ -384,6 +435,7 @@ impl Mlt {
         chain: &mut SubChain,
         rng: &mut Rng,
         slot: &mut SlotState,
+        film: &mut SplatBuffer,
         counters: &mut Counters,
     ) -> Option<f32> {
         if !(chain.current.target > 0.0) {
@@ -402,7 +454,7 @@ impl Mlt {
                 Some(p) => p,
                 None => {
                     // The jump chose the current technique: the state stays, and it is splatted.
-                    self.splat(d, &chain.current, 1.0, slot);
+                    self.splat(d, &chain.current, 1.0, film);
                     slot.stats.per_depth[d].iterations += 1;
                     self.count_technique_state(d, &chain.current, slot);
                     return None;
@@ -429,9 +481,9 @@ impl Mlt {
         };
         counters.samples += 1;
         let large_step_target = large.then_some(proposal.target);
-        self.splat(d, &proposal, a, slot);
+        self.splat(d, &proposal, a, film);
         if a < 1.0 {
-            self.splat(d, &chain.current, 1.0 - a, slot);
+            self.splat(d, &chain.current, 1.0 - a, film);
         }
         let accepted = rng.uniform() < a;
         let kind = if jump {
@@ -557,14 +609,16 @@ impl Mlt {
         choice
     }
 
-    /// Splats `state`'s contributions with weight `w` / target (Veach's expected values).
-    fn splat(&self, d: usize, state: &PathState, w: f32, slot: &mut SlotState) {
+    /// Splats `state`'s contributions with weight `w` / target (Veach's expected values) to depth
+    /// `d`'s layer of the unit's buffer (rows [d·H, (d+1)·H) of the stacked film).
+    fn splat(&self, d: usize, state: &PathState, w: f32, film: &mut SplatBuffer) {
         if !(w > 0.0) || !(state.target > 0.0) {
             return;
         }
         let w = w / state.target;
+        let layer_height = film.height / self.depth_count();
         for sp in &state.splats {
-            slot.films[d].splat(sp.raster, sp.value * w);
+            film.splat_in_layer(sp.raster, d, layer_height, sp.value * w);
         }
     }
 
@@ -701,12 +755,24 @@ impl Integrator for Mlt {
     }
 
     fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
+        self.render_run(scene, job, progress).map(|run| run.output)
+    }
+}
+
+impl Mlt {
+    /// The render with the driver's stacked per-depth film (`Integrator::render` keeps only the
+    /// output).
+    pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<MltRun, RenderError> {
         let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
         let pixels = (width * height) as u64;
-        let driver = Driver::new(job, width as u32, height as u32)?;
+        let depths = self.depth_count();
+        // The driver's film stacks the depths' images (module docs, "Films and threads"); the
+        // driver refuses it beyond 2^32 pixels, and a stack beyond 2^32 rows is reported as that.
+        let stacked_height = u32::try_from(height as u64 * depths as u64)
+            .map_err(|_| RenderError::FilmTooLarge { width: scene.camera.width, height: u32::MAX })?;
+        let driver = Driver::new(job, width as u32, stacked_height)?;
         let rr = if self.settings.rr_depth == u32::MAX { usize::MAX } else { self.settings.rr_depth as usize };
         let ctx = BdptContext::new(scene, rr, self.settings.mis);
-        let depths = self.depth_count();
         let render_start = Instant::now();
         let time_budget = match job.budget {
             Budget::Seconds(s) => Some(s),
@@ -775,13 +841,14 @@ impl Integrator for Mlt {
                  emitters are visible from the camera's surroundings, or raise `bootstrap`.",
                 n_boot
             ));
-            return Ok(RenderOutput {
+            let output = RenderOutput {
                 image: Image::new(width, height),
                 layers: Vec::new(),
                 counters: boot_counters,
                 wall_time: render_start.elapsed(),
                 extra_stats: serde_json::json!({ "warnings": warnings, "b": b_boot, "bootstrap_paths_per_depth": n_boot }),
-            });
+            };
+            return Ok(MltRun { output, film: Accumulator::new(width, height * depths) });
         }
         // Without progressive b a depth's b_d stays the bootstrap's, so a depth it missed cannot
         // be recovered and is not chosen (`depth_choice`); a warning says so.
@@ -843,8 +910,9 @@ impl Integrator for Mlt {
         progress.message("mutating");
         let bootstrap = Bootstrap { sums: &boot_sums, paths: n_boot };
         let preview = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
-            let states: Vec<&SlotState> = at.slots.iter().map(|slot| &slot.state).collect();
-            self.normalised_image(&states, &bootstrap, width, height).0
+            let large_steps = self.large_step_totals(at.units);
+            let iterations = self.iteration_counts(at.slots.iter().map(|slot| &slot.state));
+            self.normalised_image(at.film, &large_steps, &iterations, &bootstrap).0
         };
         let unit_totals = || (0..self.settings.chains).map(|_| Mutex::new(vec![(0.0, 0); depths])).collect();
         let pooled = PooledLargeSteps { written: [unit_totals(), unit_totals()], choice: Mutex::new(None) };
@@ -854,13 +922,12 @@ impl Integrator for Mlt {
             progress,
             |_| self.new_slot(width, height),
             |item, unit, slot| {
-                let state = &mut slot.state;
-                let counters = &mut slot.counters;
+                let Slot { index, state, film, counters } = slot;
                 let depth_choice = (depths > 1).then(|| self.depth_choice(&bootstrap, &pooled, item.pass));
                 for _ in 0..segment {
                     let d = depth_choice.as_ref().map_or(0, |c| c.sample_discrete(unit.rng.uniform()).0);
                     let Some(chain) = unit.subchains[d].as_mut() else { continue };
-                    if let Some(target) = self.iterate(&ctx, d, chain, &mut unit.rng, state, counters) {
+                    if let Some(target) = self.iterate(&ctx, d, chain, &mut unit.rng, state, film, counters) {
                         let depth = &mut state.stats.per_depth[d];
                         depth.large_step_target_sum += target as f64;
                         depth.large_steps += 1;
@@ -874,7 +941,7 @@ impl Integrator for Mlt {
                         .unwrap_or_else(PoisonError::into_inner);
                     written.clone_from(&unit.large_steps);
                 }
-                if slot.index == 0 {
+                if *index == 0 {
                     let moves = &state.stats.moves;
                     let (proposed, accepted) = [&moves.large, &moves.small]
                         .into_iter()
@@ -887,15 +954,14 @@ impl Integrator for Mlt {
             Some(&preview),
         );
 
-        // Merge the slots in slot order (deterministic) and normalise each depth.
+        // The image: the driver's film, each depth normalised with the large-step totals pooled in
+        // unit order and the depths' iteration counts (integers: any merge order gives them).
+        let large_steps = self.large_step_totals(&out.units);
         let mut slots = out.slot_states.into_iter();
         let Some(mut merged) = slots.next() else {
             return Err(RenderError::Settings("no worker ran".into()));
         };
         for s in slots {
-            for (a, b) in merged.films.iter_mut().zip(&s.films) {
-                a.merge(b);
-            }
             if let (Some(m), Some(o)) = (merged.count_films.as_mut(), s.count_films.as_ref()) {
                 for (a, b) in m.iter_mut().flatten().zip(o.iter().flatten()) {
                     a.merge(b);
@@ -903,7 +969,12 @@ impl Integrator for Mlt {
             }
             merged.stats.merge(&s.stats);
         }
-        let (image, b_final) = self.normalised_image(&[&merged], &bootstrap, width, height);
+        let iterations = self.iteration_counts(std::iter::once(&merged));
+        for (depth, (sum, _)) in merged.stats.per_depth.iter_mut().zip(&large_steps) {
+            // The slot-order f64 sum would differ in its last bits between thread counts.
+            depth.large_step_target_sum = *sum;
+        }
+        let (image, b_final) = self.normalised_image(&out.film, &large_steps, &iterations, &bootstrap);
 
         let mut layers = Vec::new();
         if let Some(films) = merged.count_films.as_ref() {
@@ -929,12 +1000,13 @@ impl Integrator for Mlt {
         }
         counters.merge(&boot_counters);
         counters.merge(&init_counters);
-        Ok(RenderOutput {
+        let output = RenderOutput {
             image,
             layers,
             counters,
             wall_time: render_start.elapsed(),
             extra_stats: serde_json::to_value(&stats).unwrap_or(serde_json::Value::Null),
-        })
+        };
+        Ok(MltRun { output, film: out.film })
     }
 }
