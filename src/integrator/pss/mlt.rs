@@ -52,7 +52,7 @@
 //! Each iteration splats the proposal with weight a and the current state with 1 − a (Veach's
 //! expected values), so rejected proposals still contribute.
 
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
 use glam::Vec2;
@@ -75,6 +75,9 @@ use crate::scene::Scene;
 use crate::spectrum::{is_finite, luminance, Rgb};
 use crate::stats::{AcceptanceCount, Counters};
 
+mod depth_choice;
+use depth_choice::{LargeStepTotals, PooledLargeSteps};
+
 /// Primary-sample streams: camera subpath, light subpath, connection, technique (MMLT's u_t).
 const CAMERA_STREAM: usize = 0;
 const LIGHT_STREAM: usize = 1;
@@ -89,18 +92,6 @@ const CHAIN_SEED_SALT: u64 = 0xC4A1_0000_u64;
 /// Distinguishes the sub-chains' mutation streams (stream c·D + d for chain c, depth d) from the
 /// bootstrap's: chains that start from the same bootstrap sample must then mutate independently.
 const SUBCHAIN_SEED_SALT: u64 = 0x5EA2_C400_u64;
-
-/// Share of the depth choice spread evenly over the depths (MMLT, RJMLT), so that a depth whose
-/// b_d estimate is 0 or far too small is still visited: p(d) = (1 − ε)·b̂_d/Σb̂ + ε/D, with b̂_d
-/// the render's estimate at the end of the previous pass (`Mlt::depth_choice`, `PooledLargeSteps`). The MMLT paper (Sec. 4,
-/// "Initialization") chooses p(d) ∝ b_d and recommends progressive b as "less likely to miss rare
-/// bounces when an initial estimate of b_k is zero but b_k > 0"; but with p(d) ∝ b_d alone a depth
-/// whose bootstrap b_d is 0 never receives an iteration, so no large step of it ever refines b_d
-/// and its light is lost (issue 12: the door scene with 200 bootstrap paths lost depth 1,
-/// b ≈ 5e-4, in 3 of 4 seeds). The estimator does not depend on p(d): each depth's film is divided
-/// by the iterations that depth received (module docs, "Normalisation"), so p(d) only moves
-/// effort, and the floor costs at most ε of the iterations on depths that carry no light.
-const DEPTH_CHOICE_FLOOR: f64 = 0.1;
 
 /// PSSMLT, MMLT or RJMLT.
 #[derive(Clone, Debug)]
@@ -158,20 +149,6 @@ struct ChainUnit {
     /// Indexed by depth for MMLT and RJMLT (None only where the depth is never chosen:
     /// bootstrap b_d = 0 without progressive b); one entry for PSSMLT.
     subchains: Vec<Option<SubChain>>,
-}
-
-/// Per depth: the sum and count of large-step targets.
-type LargeStepTotals = Vec<(f64, u64)>;
-
-/// The render-wide large steps behind the depth choice, pooled deterministically: after its
-/// segment of pass k every unit writes its running totals to `written[k mod 2][unit]`; the first
-/// unit of pass k + 1 to need the choice sums `written[k mod 2]` in unit order (all of pass k has
-/// ended: passes are synchronised) while pass k + 1 writes the other buffer. So every unit of a
-/// pass uses the same choice, whatever the threads' timing, and the image stays bit-identical.
-struct PooledLargeSteps {
-    written: [Vec<Mutex<LargeStepTotals>>; 2],
-    /// The choice of the pass it was computed for.
-    choice: Mutex<Option<(u64, Arc<Distribution1D>)>>,
 }
 
 /// Per-slot scratch buffers and statistics. The image is not here: it is in the driver's film,
@@ -400,19 +377,6 @@ impl Mlt {
         (Image { width, height, pixels }, b)
     }
 
-    /// Per depth, the sum and count of every large-step target of the chains so far, pooled in
-    /// unit order (so not depending on the threads), for b_d.
-    fn large_step_totals(&self, units: &[ChainUnit]) -> LargeStepTotals {
-        let mut totals = vec![(0.0, 0); self.depth_count()];
-        for unit in units {
-            for (total, own) in totals.iter_mut().zip(&unit.large_steps) {
-                total.0 += own.0;
-                total.1 += own.1;
-            }
-        }
-        totals
-    }
-
     /// Per depth, the iterations the slots ran (integer sums: any order gives them).
     fn iteration_counts<'s>(&self, slots: impl Iterator<Item = &'s SlotState>) -> Vec<u64> {
         let mut iterations = vec![0; self.depth_count()];
@@ -527,86 +491,6 @@ impl Mlt {
         }
         self.count_technique_state(d, &chain.current, slot);
         large_step_target
-    }
-
-    /// A sub-chain with no non-zero state yet (its depth's bootstrap found no light) takes a large
-    /// step: a uniform sample of (ū, u_t) (RJMLT: of (s, ū)), which counts in b_d like every
-    /// large step. The first non-zero one becomes the chain's state. Until then nothing is
-    /// splatted and no iteration of the depth is counted, so the depth's image (film ÷ iterations)
-    /// is an average over states of chains that have found light; what remains is the start-up
-    /// bias of a chain started from a uniform sample restricted to f̂ > 0 instead of ∝ f̂, which
-    /// vanishes as the chain runs (as does that of the bootstrap's finite resampling), and the
-    /// finite-sample effect of stopping each chain's search at its first success on b_d, which
-    /// the chain's later large steps dilute: the estimator is consistent.
-    fn search(
-        &self,
-        ctx: &BdptContext,
-        d: usize,
-        chain: &mut SubChain,
-        slot: &mut SlotState,
-        counters: &mut Counters,
-    ) -> f32 {
-        chain.sampler.start_iteration_with(true);
-        let proposal = self.evaluate(ctx, d, &mut chain.sampler, None, slot, counters);
-        counters.samples += 1;
-        slot.stats.per_depth[d].search_steps += 1;
-        let target = proposal.target;
-        if target > 0.0 {
-            slot.stats.per_depth[d].searches_found += 1;
-            chain.sampler.accept();
-            chain.current = proposal;
-        } else {
-            chain.sampler.reject();
-        }
-        target
-    }
-
-    /// The depth choice of pass `pass`: p(d) = (1 − ε)·b̂_d/Σb̂ + ε/D (`DEPTH_CHOICE_FLOOR`), with
-    /// b̂_d the bootstrap's estimate refined, under progressive b, by every large step of the
-    /// passes before (the MMLT paper's progressive b_k, Sec. 4 "Initialization", applied to the
-    /// choice as well as to the normalisation). Depths that cannot be recovered (bootstrap b_d = 0
-    /// without progressive b: their image is scaled by b_d = 0) are never chosen.
-    fn depth_choice(&self, bootstrap: &Bootstrap, pooled: &PooledLargeSteps, pass: u64) -> Arc<Distribution1D> {
-        let mut cached = pooled.choice.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some((p, choice)) = cached.as_ref() {
-            if *p == pass {
-                return choice.clone();
-            }
-        }
-        let depths = self.depth_count();
-        let mut large_steps = vec![(0.0f64, 0u64); depths];
-        if pass > 0 {
-            for unit in &pooled.written[((pass - 1) % 2) as usize] {
-                let unit = unit.lock().unwrap_or_else(PoisonError::into_inner);
-                for (total, own) in large_steps.iter_mut().zip(unit.iter()) {
-                    total.0 += own.0;
-                    total.1 += own.1;
-                }
-            }
-        }
-        let b: Vec<f64> = (0..depths)
-            .map(|d| {
-                if self.settings.progressive_b {
-                    let (sum, n) = large_steps[d];
-                    (bootstrap.sums[d] + sum) / (bootstrap.paths + n) as f64
-                } else {
-                    bootstrap.sums[d] / bootstrap.paths as f64
-                }
-            })
-            .collect();
-        let recoverable = |d: usize| self.settings.progressive_b || bootstrap.sums[d] > 0.0;
-        let recoverable_depths = (0..depths).filter(|&d| recoverable(d)).count().max(1) as f64;
-        let total: f64 = b.iter().sum();
-        let weights: Vec<f32> = (0..depths)
-            .map(|d| {
-                let share = if total > 0.0 { b[d] / total } else { 0.0 };
-                let floor = if recoverable(d) { DEPTH_CHOICE_FLOOR / recoverable_depths } else { 0.0 };
-                ((1.0 - DEPTH_CHOICE_FLOOR) * share + floor) as f32
-            })
-            .collect();
-        let choice = Arc::new(Distribution1D::new(&weights));
-        *cached = Some((pass, choice.clone()));
-        choice
     }
 
     /// Splats `state`'s contributions with weight `w` / target (Veach's expected values) to depth
