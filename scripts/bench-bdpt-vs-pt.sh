@@ -20,21 +20,8 @@ scene=${1:-scenes/cornell-box.toml}
 threads=${THREADS:-$(nproc)}
 seed=${SEED:-1}
 outdir=${OUTDIR:-/tmp/bench-bdpt-vs-pt}
-if [[ -n "${PLEXUS:-}" ]]; then
-    plexus=$PLEXUS
-elif [[ -n "${CARGO_TARGET_DIR:-}" ]]; then
-    plexus=$CARGO_TARGET_DIR/release/plexus
-else
-    plexus=target/release/plexus
-fi
-if [[ ! -x "$plexus" ]]; then
-    echo "bench-bdpt-vs-pt: no plexus binary at '$plexus' (build with 'cargo build --release' or set PLEXUS)" >&2
-    exit 1
-fi
-if [[ ! -f "$scene" ]]; then
-    echo "bench-bdpt-vs-pt: scene '$scene' not found" >&2
-    exit 1
-fi
+source "$(dirname "$0")/plexus-binary.sh"
+plexus_binary bench-bdpt-vs-pt "$scene"
 mkdir -p "$outdir"
 
 echo "| integrator | spp | threads | wall s | samples/s | Mrays/s | rays | shadow rays |"

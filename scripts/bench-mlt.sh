@@ -22,21 +22,8 @@ time_budget=${TIME:-60}
 threads=${THREADS:-2}
 seed=${SEED:-1}
 outdir=${OUTDIR:-/tmp/bench-mlt}
-if [[ -n "${PLEXUS:-}" ]]; then
-    plexus=$PLEXUS
-elif [[ -n "${CARGO_TARGET_DIR:-}" ]]; then
-    plexus=$CARGO_TARGET_DIR/release/plexus
-else
-    plexus=target/release/plexus
-fi
-if [[ ! -x "$plexus" ]]; then
-    echo "bench-mlt: no plexus binary at '$plexus' (build with 'cargo build --release' or set PLEXUS)" >&2
-    exit 1
-fi
-if [[ ! -f "$scene" ]]; then
-    echo "bench-mlt: scene '$scene' not found" >&2
-    exit 1
-fi
+source "$(dirname "$0")/plexus-binary.sh"
+plexus_binary bench-mlt "$scene"
 mkdir -p "$outdir"
 
 extra=()

@@ -19,17 +19,8 @@ set -euo pipefail
 budget=${TIME:-1.5}
 threads=${THREADS:-2}
 outdir=${OUTDIR:-/tmp/bench-time-budgets}
-if [[ -n "${PLEXUS:-}" ]]; then
-    plexus=$PLEXUS
-elif [[ -n "${CARGO_TARGET_DIR:-}" ]]; then
-    plexus=$CARGO_TARGET_DIR/release/plexus
-else
-    plexus=target/release/plexus
-fi
-if [[ ! -x "$plexus" ]]; then
-    echo "bench-time-budgets: no plexus binary at '$plexus' (build with 'cargo build --release' or set PLEXUS)" >&2
-    exit 1
-fi
+source "$(dirname "$0")/plexus-binary.sh"
+plexus_binary bench-time-budgets
 root=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$outdir"
 # The Cornell box at 64×64 (the scene refers to no other file, so a copy anywhere renders).
