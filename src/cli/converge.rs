@@ -63,8 +63,22 @@ pub struct ConvergeArgs {
 pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
     let overrides =
         args.set.iter().map(|s| integrator::parse_set(s)).collect::<Result<Vec<_>, _>>().map_err(bad_input)?;
-    if args.threads == Some(0) {
-        return Err(bad_input("--threads must be at least 1"));
+    if let Some(n) = args.threads {
+        integrator::check_threads(n, "--threads").map_err(bad_input)?;
+    }
+    // Every budget within the render limits, and the whole study too: --times 1e30 ran for ever.
+    for &t in &args.times {
+        integrator::check_budget(integrator::Budget::Seconds(t), 1, 1, "--times").map_err(bad_input)?;
+    }
+    let runs = (args.times.len() as u64).saturating_mul(args.seeds).saturating_mul(args.integrators.len() as u64);
+    let study_seconds = args.times.iter().sum::<f64>() * runs as f64;
+    if study_seconds > integrator::MAX_SECONDS {
+        return Err(bad_input(format!(
+            "--times, --seeds and --integrators: {runs} renders of {} s in all is {study_seconds:.0} s, more than the \
+             limit of {} s (30 days)",
+            args.times.iter().sum::<f64>(),
+            integrator::MAX_SECONDS
+        )));
     }
     if !(args.epsilon > 0.0 && args.epsilon.is_finite()) {
         return Err(bad_input(format!("--epsilon must be positive, got {}", args.epsilon)));
@@ -90,11 +104,10 @@ pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
         );
         loaded.scene.camera = camera_at_resolution(cam, ref_w, ref_h).map_err(bad_input)?;
     }
-    let threads = args
-        .threads
-        .or(loaded.render.threads)
-        .filter(|&n| n > 0)
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let threads = match (args.threads, loaded.render.threads) {
+        (Some(n), _) => super::resolve_threads(Some(n), "--threads")?,
+        (None, n) => super::resolve_threads(n, "render.threads")?,
+    };
     let config = StudyConfig {
         integrators: if args.integrators.len() == 1 && args.integrators[0].trim() == "all" {
             INTEGRATOR_NAMES.iter().map(|s| s.to_string()).collect()

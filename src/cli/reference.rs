@@ -62,9 +62,7 @@ pub fn run_reference(args: &ReferenceArgs) -> anyhow::Result<()> {
         (None, Some(s)) => return Err(bad_input(format!("--time must be a positive number of seconds, got {s}"))),
         (None, None) => return Err(bad_input("give --spp N or --time SECONDS")),
     };
-    if args.threads == Some(0) {
-        return Err(bad_input("--threads must be at least 1"));
-    }
+    let threads = super::resolve_threads(args.threads, "--threads")?;
     check_output_path(&args.out).map_err(bad_input)?;
     let load_start = Instant::now();
     let mut loaded = load_scene(&args.scene, args.accel)?;
@@ -73,8 +71,11 @@ pub fn run_reference(args: &ReferenceArgs) -> anyhow::Result<()> {
     }
     let render = &loaded.render;
     let base = if args.integrator == render.integrator { render.integrator_params.clone() } else { toml::Table::new() };
-    let integ = integrator::create(&args.integrator, &integrator::merge_params(&base, &overrides))?;
-    let threads = args.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let params = integrator::merge_params(&base, &overrides);
+    let integ = integrator::create(&args.integrator, &params)?;
+    let camera = &loaded.scene.camera;
+    let budget_option = if args.spp.is_some() { "--spp" } else { "--time" };
+    super::check_render_limits(&args.integrator, &params, camera.width, camera.height, budget, budget_option)?;
     let load_time = load_start.elapsed().as_secs_f64();
 
     let job = RenderJob { budget, seed: args.seed, threads };

@@ -71,9 +71,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let overrides =
         args.set.iter().map(|s| integrator::parse_set(s)).collect::<Result<Vec<_>, _>>().map_err(bad_input)?;
     if let Some(n) = args.threads {
-        if n == 0 {
-            return Err(bad_input("--threads must be at least 1"));
-        }
+        plexus::integrator::check_threads(n, "--threads").map_err(bad_input)?;
     }
     if let Some(s) = args.preview_every {
         if !(s.is_finite() && s > 0.0) {
@@ -88,6 +86,21 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     };
     let plan = resolve(&args, &loaded, &overrides)?;
     let integrator = integrator::create(&plan.integrator, &plan.params)?;
+    let camera = &loaded.scene.camera;
+    let budget_option = match (args.spp, args.time, plan.budget) {
+        (Some(_), _, _) => "--spp",
+        (None, Some(_), _) => "--time",
+        (None, None, Budget::SamplesPerPixel(_)) => "render.spp",
+        (None, None, Budget::Seconds(_)) => "render.time",
+    };
+    super::check_render_limits(
+        &plan.integrator,
+        &plan.params,
+        camera.width,
+        camera.height,
+        plan.budget,
+        budget_option,
+    )?;
 
     // Every output is checked before any work, so a typo costs nothing.
     for path in &plan.outputs {
@@ -179,19 +192,11 @@ fn resolve(args: &RenderArgs, loaded: &LoadedScene, overrides: &[(String, toml::
             (None, None) => Budget::SamplesPerPixel(DEFAULT_SPP),
         },
     };
-    match budget {
-        Budget::SamplesPerPixel(0) => return Err(bad_input("--spp must be at least 1")),
-        Budget::Seconds(s) if !(s.is_finite() && s > 0.0) => {
-            return Err(bad_input(format!("--time must be a positive number of seconds, got {s}")))
-        }
-        _ => {}
-    }
-
-    let threads = args
-        .threads
-        .or(render.threads)
-        .filter(|&n| n > 0)
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    // The budget's limits are checked in `check_render_limits`, which knows the film.
+    let threads = match (args.threads, render.threads) {
+        (Some(n), _) => super::resolve_threads(Some(n), "--threads")?,
+        (None, n) => super::resolve_threads(n, "render.threads")?,
+    };
 
     let outputs = if !args.out.is_empty() {
         args.out.clone()

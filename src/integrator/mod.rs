@@ -5,6 +5,7 @@
 pub mod bdpt;
 pub mod driver;
 pub mod light_tracing;
+pub mod memory;
 pub mod pss;
 pub mod pt;
 
@@ -88,6 +89,61 @@ pub enum RenderError {
     FilmTooLarge { width: u32, height: u32 },
     #[error("unknown integrator '{0}': expected one of {names}", names = INTEGRATOR_NAMES.join(", "))]
     UnknownIntegrator(String),
+    /// A budget, count or memory need beyond what a render can do (`check_budget`, `memory`).
+    #[error("{0}")]
+    Limit(String),
+}
+
+/// The longest time budget: 30 days. Longer is a typo or a hang (`--time 1e20` once panicked in
+/// `Duration::from_secs_f64`); a render that long would be checkpointed and resumed instead.
+pub const MAX_SECONDS: f64 = 30.0 * 86_400.0;
+
+/// The largest total sample budget, samples per pixel × pixels (mutations for MCMC): 2^53. Up to
+/// there every count is exact in the f64 the normalisation and the JSON report use, and the u64
+/// counters (samples, rays ≈ a few per sample) cannot overflow; at the 10^7–10^8 samples per second
+/// this machine class does, 2^53 is already years of rendering, so the bound refuses only typos.
+pub const MAX_TOTAL_SAMPLES: u64 = 1 << 53;
+
+/// The most worker threads: 1024. Each thread is a worker slot with its own counters and scratch
+/// state (MLT: a slot state per thread), and a pass waits for every slot, so far more threads than
+/// cores only costs memory and start-up (`--threads 2000` never finished). Refused rather than
+/// clamped: for MLT the image depends on the thread count, so a silent clamp would render another
+/// image than the one asked for.
+pub const MAX_THREADS: usize = 1024;
+
+/// Checks a budget against the limits before any work: a time budget positive, finite and at most
+/// `MAX_SECONDS`; a sample budget at least 1 and, times the film's pixels, at most
+/// `MAX_TOTAL_SAMPLES`. `option` names where the budget came from (`--spp`, `render.spp`) for the
+/// message.
+pub fn check_budget(budget: Budget, width: u32, height: u32, option: &str) -> Result<(), RenderError> {
+    match budget {
+        Budget::Seconds(s) => {
+            if !(s.is_finite() && s > 0.0 && s <= MAX_SECONDS) {
+                return Err(RenderError::Limit(format!(
+                    "{option} {s}: expected a number of seconds in (0, {MAX_SECONDS}] (30 days)"
+                )));
+            }
+        }
+        Budget::SamplesPerPixel(n) => {
+            let pixels = width as u64 * height as u64;
+            let total = n.checked_mul(pixels).filter(|&t| (1..=MAX_TOTAL_SAMPLES).contains(&t));
+            if n == 0 || total.is_none() {
+                return Err(RenderError::Limit(format!(
+                    "{option} {n}: expected 1 ..= {} for a {width}x{height} film (total samples at most 2^53)",
+                    (MAX_TOTAL_SAMPLES / pixels.max(1)).max(1)
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks a thread count (`option` names its source) against `MAX_THREADS`.
+pub fn check_threads(threads: usize, option: &str) -> Result<(), RenderError> {
+    if !(1..=MAX_THREADS).contains(&threads) {
+        return Err(RenderError::Limit(format!("{option} {threads}: expected 1 ..= {MAX_THREADS} threads")));
+    }
+    Ok(())
 }
 
 /// A light-transport algorithm, configured and ready to render any scene.

@@ -556,8 +556,16 @@ impl Builder<'_> {
         };
         let time = match r.time {
             None => None,
-            Some(t) if t > 0.0 && t.is_finite() => Some(t),
-            Some(t) => return Err(self.err("render.time", format!("expected a number of seconds > 0, got {t}"))),
+            Some(t) if t > 0.0 && t <= crate::integrator::MAX_SECONDS => Some(t),
+            Some(t) => {
+                return Err(self.err(
+                    "render.time",
+                    format!(
+                        "expected a number of seconds in (0, {}] (30 days), got {t}",
+                        crate::integrator::MAX_SECONDS
+                    ),
+                ))
+            }
         };
         if spp.is_some() && time.is_some() {
             return Err(self.err("render", "expected either 'spp' or 'time' as the budget, not both"));
@@ -569,8 +577,13 @@ impl Builder<'_> {
         };
         let threads = match r.threads {
             None => None,
-            Some(n) if n > 0 => Some(n as usize),
-            Some(n) => return Err(self.err("render.threads", format!("expected an integer > 0, got {n}"))),
+            Some(n) if (1..=crate::integrator::MAX_THREADS as i64).contains(&n) => Some(n as usize),
+            Some(n) => {
+                return Err(self.err(
+                    "render.threads",
+                    format!("expected an integer in 1 ..= {}, got {n}", crate::integrator::MAX_THREADS),
+                ))
+            }
         };
         Ok(RenderDesc {
             integrator,

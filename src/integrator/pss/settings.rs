@@ -31,6 +31,20 @@ pub const RJMLT_LARGE_STEP_PROBABILITY: f64 = 0.1;
 /// RJMLT's default probability of a technique jump.
 pub const RJMLT_JUMP_PROBABILITY: f64 = 0.05;
 
+/// The longest path, in scattering events: 1024. MMLT and RJMLT keep a sub-chain, a b_d and a film
+/// layer per depth (`integrator::memory`), so the depth multiplies the render's memory
+/// (`max_depth = 100000` aborted on allocation); and past 1024 bounces even an albedo of 0.99
+/// leaves 0.99^1024 ≈ 3·10^-5 of a path's throughput, below what the image can show.
+pub const MAX_DEPTH: u32 = 1024;
+/// The most bootstrap paths per depth: 2^32. They are all held (target and CDF entry, 12 bytes;
+/// 48 GiB per depth at the bound) to start the chains from, and the discrete distribution indexes
+/// them with u32-range indices on every platform.
+pub const MAX_BOOTSTRAP: u64 = 1 << 32;
+/// The most chains: 2^24. Each holds a sub-chain per depth (sampler and current path) for the whole
+/// render, and per-chain pooled statistics are kept twice; 2^24 is already thousands of chains per
+/// pixel of a 4K film, while `chains = 10^12` aborted on allocation.
+pub const MAX_CHAINS: u64 = 1 << 24;
+
 /// Settings of `integrator = "pssmlt"` and `"mmlt"` (defaults: the MMLT paper, Sec. 5).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -96,14 +110,17 @@ impl MltSettings {
         {
             return bad("jump_probability must be in [0, 1] and large_step_probability + jump_probability at most 1");
         }
-        if settings.max_depth == 0 {
-            return bad("max_depth must be at least 1");
+        if !(1..=MAX_DEPTH).contains(&settings.max_depth) {
+            return bad(&format!("max_depth = {}: expected 1 ..= {MAX_DEPTH}", settings.max_depth));
         }
-        if settings.bootstrap == 0 {
-            return bad("bootstrap must be at least 1");
+        if !(1..=MAX_BOOTSTRAP).contains(&settings.bootstrap) {
+            return bad(&format!(
+                "bootstrap = {}: expected 1 ..= {MAX_BOOTSTRAP} (2^32) paths per depth",
+                settings.bootstrap
+            ));
         }
-        if settings.chains == 0 {
-            return bad("chains must be at least 1");
+        if !(1..=MAX_CHAINS).contains(&settings.chains) {
+            return bad(&format!("chains = {}: expected 1 ..= {MAX_CHAINS} (2^24)", settings.chains));
         }
         if !(0.0..=1.0).contains(&settings.large_step_probability) {
             return bad("large_step_probability must be in [0, 1]");

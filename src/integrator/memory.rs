@@ -1,0 +1,159 @@
+//! The memory a render needs before it starts, and the memory the process may use: one estimate,
+//! computed with checked arithmetic, so that a film or a Markov chain setup that would not fit is
+//! refused with its size instead of aborting on allocation (issue 19).
+//!
+//! What is counted are the buffers that grow with the budget's dimensions (see `driver`'s render
+//! model): the film's unnormalised sums (3 × f64 per pixel; MLT stacks one W × H layer per path
+//! depth), the normalised output image (3 × f32 per pixel), one pass of splat buffers (16 bytes a
+//! contribution, at least one per pixel sample of the pass), and for MLT the bootstrap's targets
+//! (one f32 plus one f64 of the discrete distribution per bootstrap path and depth) and the chains'
+//! sub-chains. Scene memory (meshes, accelerator, lights) is already built when this is checked and
+//! is reported by `plexus info`. The estimate is a lower bound: it omits scratch state, so a render
+//! it refuses certainly would not have fitted.
+
+use super::pss::settings::{MltSettings, MltVariant};
+use super::RenderError;
+
+/// Bytes of one film pixel: the accumulator's three f64 sums.
+const FILM_PIXEL_BYTES: u64 = 3 * 8;
+/// Bytes of one output pixel: three f32.
+const IMAGE_PIXEL_BYTES: u64 = 3 * 4;
+/// Bytes of one recorded contribution in a unit's splat buffer (pixel index and RGB, `SplatBuffer`).
+const SPLAT_BYTES: u64 = 16;
+/// A pass holds at least this many pixel samples (`driver::MIN_SAMPLES_PER_PASS`).
+const MIN_SAMPLES_PER_PASS: u64 = 1 << 16;
+/// Bytes per bootstrap path and depth: its f32 target and the f64 CDF entry of the distribution the
+/// chains start from.
+const BOOTSTRAP_PATH_BYTES: u64 = 4 + 8;
+/// Bytes of one MLT sub-chain, at least: its sampler (primary samples of a path with their backups)
+/// and its current path's contribution, per path vertex (`max_depth + 2` vertices, two subpaths).
+const SUBCHAIN_BYTES_PER_VERTEX: u64 = 2 * 64;
+
+/// The memory a render will allocate for its film, pass buffers and integrator state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct RenderMemory {
+    /// Film sums (all MLT depth layers) and the output image.
+    pub film: u64,
+    /// One pass of splat buffers.
+    pub pass_buffers: u64,
+    /// MLT only: bootstrap targets and chains.
+    pub chains: u64,
+}
+
+impl RenderMemory {
+    pub fn total(&self) -> u64 {
+        self.film.saturating_add(self.pass_buffers).saturating_add(self.chains)
+    }
+}
+
+fn too_large(what: &str) -> RenderError {
+    RenderError::Limit(format!("the memory of {what} overflows a 64-bit byte count"))
+}
+
+fn mul(a: u64, b: u64, what: &str) -> Result<u64, RenderError> {
+    a.checked_mul(b).ok_or_else(|| too_large(what))
+}
+
+/// The memory `integrator` (with its `params`, already validated by `create`) needs for a
+/// `width`×`height` film. Every product is checked; an overflow is itself a refusal.
+pub fn render_memory(
+    integrator: &str,
+    params: &toml::Table,
+    width: u32,
+    height: u32,
+) -> Result<RenderMemory, RenderError> {
+    let pixels = mul(width as u64, height as u64, "the film")?;
+    let variant = match integrator {
+        "pssmlt" => Some(MltVariant::Pssmlt),
+        "mmlt" => Some(MltVariant::Mmlt),
+        "rjmlt" => Some(MltVariant::Rjmlt),
+        _ => None,
+    };
+    let image = mul(pixels, IMAGE_PIXEL_BYTES, "the output image")?;
+    // A pass of the image integrators takes max(1, 2^16 / pixels) samples per pixel; MLT's pass is
+    // about one mutation per pixel. Either way at least max(pixels, 2^16) contributions.
+    let pass_buffers = mul(pixels.max(MIN_SAMPLES_PER_PASS), SPLAT_BYTES, "a pass's splat buffers")?;
+    let Some(variant) = variant else {
+        let film = mul(pixels, FILM_PIXEL_BYTES, "the film")?;
+        let film = film.checked_add(image).ok_or_else(|| too_large("the film"))?;
+        return Ok(RenderMemory { film, pass_buffers, chains: 0 });
+    };
+    let settings = MltSettings::from_params(variant, params)?;
+    let depths = match variant {
+        MltVariant::Pssmlt => 1,
+        MltVariant::Mmlt | MltVariant::Rjmlt => settings.max_depth as u64 + 1,
+    };
+    // MLT's per-depth images are layers of one W × (H·D) film (`driver` docs).
+    let film = mul(mul(pixels, depths, "the per-depth film")?, FILM_PIXEL_BYTES, "the per-depth film")?;
+    let film = film.checked_add(image).ok_or_else(|| too_large("the film"))?;
+    let bootstrap = mul(mul(settings.bootstrap, depths, "the bootstrap")?, BOOTSTRAP_PATH_BYTES, "the bootstrap")?;
+    let subchain = mul(settings.max_depth as u64 + 2, SUBCHAIN_BYTES_PER_VERTEX, "a sub-chain")?;
+    let chains = mul(mul(settings.chains, depths, "the chains")?, subchain, "the chains")?;
+    let chains = bootstrap.checked_add(chains).ok_or_else(|| too_large("the chains"))?;
+    Ok(RenderMemory { film, pass_buffers, chains })
+}
+
+/// The memory this process may allocate: the cgroup's `memory.max` when it is set and finite,
+/// else the kernel's `MemAvailable`; the smaller of the two when both are known. `None` when
+/// neither can be read (then nothing is refused).
+pub fn available_memory() -> Option<u64> {
+    let cgroup = std::fs::read_to_string("/sys/fs/cgroup/memory.max").ok().and_then(|s| s.trim().parse::<u64>().ok());
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok().and_then(|text| {
+        text.lines()
+            .find_map(|l| l.strip_prefix("MemAvailable:"))
+            .and_then(|rest| rest.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+            .and_then(|kib| kib.checked_mul(1024))
+    });
+    match (cgroup, meminfo) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
+/// Bytes as GiB for messages.
+pub fn gib(bytes: u64) -> f64 {
+    bytes as f64 / (1u64 << 30) as f64
+}
+
+/// Refuses a render whose estimate exceeds `available` bytes, naming the estimate's parts.
+pub fn check_fits(memory: &RenderMemory, width: u32, height: u32, available: Option<u64>) -> Result<(), RenderError> {
+    let Some(available) = available else { return Ok(()) };
+    if memory.total() > available {
+        return Err(RenderError::Limit(format!(
+            "a {width}x{height} render needs at least {:.2} GiB (film {:.2}, pass buffers {:.2}, chains {:.2}) but \
+             only {:.2} GiB are available to the process; lower the resolution{}",
+            gib(memory.total()),
+            gib(memory.film),
+            gib(memory.pass_buffers),
+            gib(memory.chains),
+            gib(available),
+            if memory.chains > 0 { ", max_depth, bootstrap or chains" } else { "" }
+        )));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_documented_maximum_film_is_counted_in_full() {
+        // 65536² pixels × (24 + 12) bytes = 144 GiB of film, 64 GiB of pass buffers.
+        let m = render_memory("pt", &toml::Table::new(), 65536, 65536).expect("fits in u64");
+        assert_eq!(m.film, (1u64 << 32) * 36);
+        assert_eq!(m.pass_buffers, (1u64 << 32) * 16);
+        assert!(check_fits(&m, 65536, 65536, Some(1 << 40)).is_err());
+        assert!(check_fits(&m, 65536, 65536, Some(1 << 41)).is_ok());
+    }
+
+    #[test]
+    fn mlt_counts_every_depth_layer_and_the_bootstrap() {
+        let params: toml::Table = toml::from_str("max_depth = 7\nbootstrap = 1000\nchains = 10").expect("toml");
+        let m = render_memory("mmlt", &params, 10, 10).expect("small");
+        assert_eq!(m.film, 100 * 8 * 24 + 100 * 12);
+        assert_eq!(m.chains, 1000 * 8 * 12 + 10 * 8 * 9 * 128);
+        let pssmlt = render_memory("pssmlt", &params, 10, 10).expect("small");
+        assert_eq!(pssmlt.film, 100 * 24 + 100 * 12);
+    }
+}
