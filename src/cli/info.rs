@@ -4,7 +4,10 @@ use std::path::PathBuf;
 
 use clap::Args;
 use plexus::accel::AccelKind;
+use plexus::integrator::memory;
 use plexus::scene::{load_scene, scene_info};
+
+use super::bad_input;
 
 #[derive(Debug, Args)]
 pub struct InfoArgs {
@@ -21,10 +24,39 @@ pub struct InfoArgs {
 pub fn run(args: InfoArgs) -> anyhow::Result<()> {
     let loaded = load_scene(&args.scene, args.accel)?;
     let info = scene_info(&loaded.scene);
+    // What rendering it would allocate on top of the scene: the one estimate `render` checks.
+    let (width, height) = (loaded.scene.camera.width, loaded.scene.camera.height);
+    let render = &loaded.render;
+    let needed =
+        memory::render_memory(&render.integrator, &render.integrator_params, width, height).map_err(bad_input)?;
+    let available = memory::available_memory();
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&info)?);
+        let mut value = serde_json::to_value(&info)?;
+        if let Some(map) = value.as_object_mut() {
+            map.insert(
+                "render_memory".to_string(),
+                serde_json::json!({
+                    "integrator": render.integrator,
+                    "film": needed.film,
+                    "pass_buffers": needed.pass_buffers,
+                    "chains": needed.chains,
+                    "total": needed.total(),
+                    "available": available,
+                }),
+            );
+        }
+        println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
         print!("{info}");
+        let available = available.map_or_else(|| "unknown".to_string(), |a| format!("{:.2} GiB", memory::gib(a)));
+        println!(
+            "render:      {:.2} GiB for {} at {width}x{height} (film {:.2}, pass buffers {:.2}, chains {:.2}); available {available}",
+            memory::gib(needed.total()),
+            render.integrator,
+            memory::gib(needed.film),
+            memory::gib(needed.pass_buffers),
+            memory::gib(needed.chains),
+        );
     }
     Ok(())
 }

@@ -120,7 +120,7 @@ pub fn check_budget(budget: Budget, width: u32, height: u32, option: &str) -> Re
         Budget::Seconds(s) => {
             if !(s.is_finite() && s > 0.0 && s <= MAX_SECONDS) {
                 return Err(RenderError::Limit(format!(
-                    "{option} {s}: expected a number of seconds in (0, {MAX_SECONDS}] (30 days)"
+                    "{option} {s:?}: expected a number of seconds in (0, {MAX_SECONDS}] (30 days)"
                 )));
             }
         }

@@ -561,7 +561,7 @@ impl Builder<'_> {
                 return Err(self.err(
                     "render.time",
                     format!(
-                        "expected a number of seconds in (0, {}] (30 days), got {t}",
+                        "expected a number of seconds in (0, {}] (30 days), got {t:?}",
                         crate::integrator::MAX_SECONDS
                     ),
                 ))
