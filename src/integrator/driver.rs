@@ -229,6 +229,7 @@ impl Driver {
         }
         let threads =
             if job.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { job.threads };
+        super::check_threads(threads, "threads")?;
         let pool = ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("plexus-worker-{i}"))
@@ -487,6 +488,8 @@ impl<'a> ImageRender<'a> {
         progress: &'a dyn Progress,
         clock: Arc<dyn Clock>,
     ) -> Result<Self, RenderError> {
+        // Before any product of the budget with the pixels (`progress.set_total`, the passes).
+        super::check_budget(job.budget, width, height, "budget")?;
         let started = clock.now();
         let plan = ImagePlan::new(width, height, job.budget);
         if let Some(spp) = plan.total_spp {
@@ -772,6 +775,20 @@ mod tests {
     fn a_film_beyond_u32_pixel_indices_is_an_error() {
         let err = Driver::new(&job(1, 1), 70_000, 70_000).err().expect("too large");
         assert!(err.to_string().contains("70000×70000"), "{err}");
+    }
+
+    /// The library refuses what the CLI refuses, for callers that skip the CLI: a sample budget
+    /// whose product with the pixels passes 2^53 (it overflowed `progress.set_total` before), a
+    /// time budget beyond 30 days, more than 1024 threads.
+    #[test]
+    fn budgets_and_threads_beyond_the_limits_are_errors_before_any_work() {
+        let over = RenderJob { budget: Budget::SamplesPerPixel(1 << 50), seed: 1, threads: 1 };
+        let err = ImageRender::new(&over, 16, 16, &crate::integrator::NoProgress).err().expect("too many samples");
+        assert!(err.to_string().contains("2^53"), "{err}");
+        let long = RenderJob { budget: Budget::Seconds(1e20), seed: 1, threads: 1 };
+        assert!(ImageRender::new(&long, 4, 4, &crate::integrator::NoProgress).is_err());
+        let err = Driver::new(&job(2000, 1), 4, 4).err().expect("too many threads");
+        assert!(err.to_string().contains("1024"), "{err}");
     }
 
     #[test]

@@ -143,8 +143,10 @@ mod tests {
         let m = render_memory("pt", &toml::Table::new(), 65536, 65536).expect("fits in u64");
         assert_eq!(m.film, (1u64 << 32) * 36);
         assert_eq!(m.pass_buffers, (1u64 << 32) * 16);
-        assert!(check_fits(&m, 65536, 65536, Some(1 << 40)).is_err());
-        assert!(check_fits(&m, 65536, 65536, Some(1 << 41)).is_ok());
+        assert_eq!(m.total(), 208 << 30);
+        assert!(check_fits(&m, 65536, 65536, Some(m.total() - 1)).is_err());
+        assert!(check_fits(&m, 65536, 65536, Some(m.total())).is_ok());
+        assert!(check_fits(&m, 65536, 65536, None).is_ok());
     }
 
     #[test]

@@ -650,6 +650,8 @@ impl Mlt {
         let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
         let pixels = (width * height) as u64;
         let depths = self.depth_count();
+        // Mutations per pixel × pixels must not overflow (`Budget::SamplesPerPixel` below).
+        crate::integrator::check_budget(job.budget, scene.camera.width, scene.camera.height, "budget")?;
         // The driver's film stacks the depths' images (module docs, "Films and threads"); the
         // driver refuses it beyond 2^32 pixels, and a stack beyond 2^32 rows is reported as that.
         let stacked_height = u32::try_from(height as u64 * depths as u64)
