@@ -167,5 +167,5 @@ fn info_prints_the_render_memory_estimate() {
     let o = plexus(&["info", "scene.toml"], dir.path());
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(out.contains("render:      208.00 GiB for pt at 65536x65536"), "{out}");
+    assert!(out.contains("render:      212992.00 MiB for pt at 65536x65536"), "{out}");
 }

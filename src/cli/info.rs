@@ -47,15 +47,21 @@ pub fn run(args: InfoArgs) -> anyhow::Result<()> {
         }
         println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
-        print!("{info}");
-        let available = available.map_or_else(|| "unknown".to_string(), |a| format!("{:.2} GiB", memory::gib(a)));
+        let text = info.to_string();
+        print!("{text}");
+        if !text.ends_with('\n') {
+            println!();
+        }
+        // MiB, as the scene's own memory line above.
+        let mib = |bytes: u64| bytes as f64 / (1u64 << 20) as f64;
+        let available = available.map_or_else(|| "unknown".to_string(), |a| format!("{:.2} MiB", mib(a)));
         println!(
-            "render:      {:.2} GiB for {} at {width}x{height} (film {:.2}, pass buffers {:.2}, chains {:.2}); available {available}",
-            memory::gib(needed.total()),
+            "render:      {:.2} MiB for {} at {width}x{height} (film {:.2}, pass buffers {:.2}, chains {:.2}); available {available}",
+            mib(needed.total()),
             render.integrator,
-            memory::gib(needed.film),
-            memory::gib(needed.pass_buffers),
-            memory::gib(needed.chains),
+            mib(needed.film),
+            mib(needed.pass_buffers),
+            mib(needed.chains),
         );
     }
     Ok(())
