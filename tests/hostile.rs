@@ -98,8 +98,9 @@ fn refused(dir: &Path, args: &[&str], needles: &[&str], kept: &[&str]) {
 }
 
 /// `/proc` exists and is a directory, but no file can be created in it: the old check (directory
-/// exists) passed and the write failed after the render. Old behaviour: exit 1, "error: cannot
-/// write '/proc/o.exr': ..." after "48 samples".
+/// exists) passed and the write failed after the render. Old behaviour (main at df7651c): exit 1,
+/// "cannot write '/proc/o.exr': No such file or directory (os error 2) at path
+/// \"/proc/.o.plexus-tmp-pUwruW.exr\"" — naming the temporary file, not the reason.
 #[test]
 fn unwritable_output_directory_is_refused_before_rendering() {
     let tmp = temp_dir("proc");
@@ -113,8 +114,9 @@ fn unwritable_output_directory_is_refused_before_rendering() {
     );
 }
 
-/// `o.exr/` has the extension "exr" to `Path`, but names a directory. Old behaviour: exit 1 after
-/// the render.
+/// `o.exr/` has the extension "exr" to `Path`, but names a directory. Old behaviour (df7651c):
+/// exit 1 after the render, "cannot write 'o.exr/': Not a directory (os error 20): Not a directory
+/// (os error 20)".
 #[test]
 fn output_with_trailing_slash_is_refused_before_rendering() {
     let tmp = temp_dir("slash");
@@ -124,7 +126,8 @@ fn output_with_trailing_slash_is_refused_before_rendering() {
 }
 
 /// libjpeg writes at most 65500 pixels per side. The camera is 65501×1 with 1 spp, so even the
-/// old behaviour (render, then fail to write: exit 1) took well under a second.
+/// old behaviour took well under a second: df7651c rendered, then exit 1 with "OpenImageIO: JPEG
+/// images can be at most 65500 pixels wide and high, not 65501x1" (the limit the table uses).
 #[test]
 fn jpeg_wider_than_the_format_allows_is_refused_before_rendering() {
     let tmp = temp_dir("jpeg");
@@ -134,7 +137,8 @@ fn jpeg_wider_than_the_format_allows_is_refused_before_rendering() {
 }
 
 /// The stats go to `o.json` beside `o.exr`; a directory of that name used to fail after the
-/// render and after `o.exr` was written (exit 1).
+/// render and after `o.exr` was written: df7651c exit 1, "cannot write the stats file o.json: Is
+/// a directory (os error 21)".
 #[test]
 fn stats_path_that_is_a_directory_is_refused_before_rendering() {
     let tmp = temp_dir("json-dir");
@@ -149,8 +153,8 @@ fn stats_path_that_is_a_directory_is_refused_before_rendering() {
     );
 }
 
-/// Old behaviour: "missing key 'camera' in the top level", or, when the file starts with another
-/// table, "missing key 'camera' in [materials.floor]".
+/// Old behaviour (df7651c): "missing key 'camera' in the top level", or, as here when the file
+/// starts with another table, "line 1: missing key 'camera' in [materials.floor]".
 #[test]
 fn missing_camera_is_reported_as_a_missing_camera_table() {
     let tmp = temp_dir("no-camera");
@@ -168,7 +172,8 @@ fn missing_camera_is_reported_as_a_missing_camera_table() {
     );
 }
 
-/// Old behaviour: "unknown key 'camara' in [camara]" (the table reported as a key of itself).
+/// Old behaviour (df7651c): "line 2: unknown key 'camara' in [camara] (expected one of: camera,
+/// ...)" — the table reported as a key of itself.
 #[test]
 fn unknown_top_level_table_is_named_with_the_valid_ones() {
     let tmp = temp_dir("camara");
@@ -182,7 +187,8 @@ fn unknown_top_level_table_is_named_with_the_valid_ones() {
     );
 }
 
-/// A PLY whose last vertex line is short. Old behaviour: one line only after newline joining,
+/// A PLY whose last vertex line is short. Old behaviour (df7651c, failing the tab assertion): one
+/// line only after newline joining,
 /// with tabs and nested `Debug` output: "invalid PLY: Line 11: Couln't read element line. \tString:
 /// '1 0 ' \tError: Custom { kind: InvalidInput, error: \"Expected element ...\" }".
 #[test]
@@ -205,7 +211,10 @@ fn truncated_ply_is_one_line_naming_file_and_line() {
 
 /// Previews are written between passes through hidden temporary files; with a preview after every
 /// pass, five renders in a row must leave only the final image and stats (the issue saw a hidden
-/// `.o.plexus-tmp-*` one run in six on the old writer).
+/// `.o.plexus-tmp-*` one run in six on the writer before `tempfile`). This test passes on df7651c
+/// too: the preview is written on the driver's thread between passes (no race with the final
+/// write) and `tempfile::TempPath` removes the file on every error or unwind path. It fails on a
+/// writer that leaks its temporary file (see the commit message).
 #[test]
 fn previews_leave_no_temporary_file() {
     let tmp = temp_dir("preview");
