@@ -213,8 +213,9 @@ fn truncated_ply_is_one_line_naming_file_and_line() {
 /// pass, five renders in a row must leave only the final image and stats (the issue saw a hidden
 /// `.o.plexus-tmp-*` one run in six on the writer before `tempfile`). This test passes on df7651c
 /// too: the preview is written on the driver's thread between passes (no race with the final
-/// write) and `tempfile::TempPath` removes the file on every error or unwind path. It fails on a
-/// writer that leaks its temporary file (see the commit message).
+/// write) and `tempfile::TempPath` removes the file on every error or unwind path. Shown to fail
+/// on a writer that copies the finished temporary file into place and keeps it: run 0 left
+/// `.o.plexus-tmp-*.exr` ×2 and `.o.plexus-tmp-*.png` ×2 (one preview and the final image each).
 #[test]
 fn previews_leave_no_temporary_file() {
     let tmp = temp_dir("preview");
