@@ -136,7 +136,7 @@ fn ply_reason(raw: &str) -> String {
         .unwrap_or_else(|| rest.lines().next().unwrap_or_default().to_string());
     let reason = reason.trim().trim_end_matches('.');
     match text {
-        Some(t) => format!("line {line}: cannot read element line '{t}': {reason}"),
+        Some(t) => format!("line {line}: cannot read '{t}': {reason}"),
         None => format!("line {line}: {reason}"),
     }
 }
