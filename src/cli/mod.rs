@@ -6,6 +6,7 @@ mod bench;
 mod compare;
 mod converge;
 mod info;
+mod outputs;
 mod progress;
 mod reference;
 mod render;

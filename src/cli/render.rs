@@ -8,11 +8,12 @@ use std::time::Instant;
 use clap::Args;
 
 use plexus::accel::AccelKind;
-use plexus::film::oiio::{check_output_path, write_image, WriteOptions};
+use plexus::film::oiio::{write_image, WriteOptions};
 use plexus::integrator::{self, Budget, RenderJob, INTEGRATOR_NAMES};
 use plexus::scene::{builtin_cornell_box, load_scene, LoadedScene};
 
 use super::bad_input;
+use super::outputs::check_outputs;
 use super::progress::{bar_wanted, BarProgress, Previews};
 use super::stats_json::{self, RenderStats};
 
@@ -103,9 +104,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     )?;
 
     // Every output is checked before any work, so a typo costs nothing.
-    for path in &plan.outputs {
-        check_output_path(path).map_err(bad_input)?;
-    }
+    let camera = &loaded.scene.camera;
+    check_outputs(&plan.outputs, camera.width as usize, camera.height as usize)?;
     let load_time = load_start.elapsed().as_secs_f64();
 
     let scene = &loaded.scene;

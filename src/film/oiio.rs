@@ -47,6 +47,12 @@ pub enum ImageWriteError {
     NotADirectory { path: PathBuf, dir: PathBuf },
     #[error("cannot write '{path}': it is a directory")]
     IsADirectory { path: PathBuf },
+    #[error("cannot write '{path}': the name ends with '/', so it names a directory, not a file")]
+    TrailingSlash { path: PathBuf },
+    #[error("cannot write '{path}': cannot create a file in '{dir}': {source}")]
+    NotWritable { path: PathBuf, dir: PathBuf, source: std::io::Error },
+    #[error("cannot write '{path}': a {width}x{height} image is larger than '.{extension}' files allow ({max} pixels per side at most)")]
+    TooLarge { path: PathBuf, width: usize, height: usize, extension: String, max: usize },
     #[error("cannot write '{path}': the file name has no extension to choose an image format by")]
     NoExtension { path: PathBuf },
     #[error("cannot write '{path}': OpenImageIO cannot write '.{extension}' files")]
@@ -128,9 +134,52 @@ fn target_dir(path: &Path) -> &Path {
     }
 }
 
-/// Checks, without writing anything, that an image could be written to `path`: its directory
-/// exists and OpenImageIO has a writer for its extension. Call it before a long render.
+/// The largest width or height a format's writer accepts, where it is below what `c_int` (the
+/// shim's type) holds. OpenImageIO has no query for this, so the limits are those of the
+/// libraries it writes through:
+/// - JPEG: 16-bit frame dimensions (ITU-T T.81, B.2.2), and libjpeg refuses more than
+///   `JPEG_MAX_DIMENSION` = 65500 (jmorecfg.h).
+/// - PNG: libpng's default `PNG_USER_WIDTH_MAX`/`PNG_USER_HEIGHT_MAX` = 1000000 (pnglibconf.h);
+///   the format itself allows 2^31 - 1.
+/// - WebP: `WEBP_MAX_DIMENSION` = 16383 (libwebp encode.h).
+/// - Targa, GIF: 16-bit width and height fields.
+/// - ICO: 256 (one byte, 0 meaning 256).
+///
+/// Every format takes the three channels plexus writes.
+fn max_side(extension: &str) -> Option<usize> {
+    Some(match extension {
+        "jpg" | "jpeg" | "jpe" | "jfif" => 65_500,
+        "png" => 1_000_000,
+        "webp" => 16_383,
+        "tga" | "tpic" | "gif" => 65_535,
+        "ico" => 256,
+        _ => return None,
+    })
+}
+
+/// Checks, without rendering, that a `width`×`height` image could be written to `path`: what
+/// [`check_output_path`] checks, and that the format can hold that resolution.
+pub fn check_output(path: &Path, width: usize, height: usize) -> Result<(), ImageWriteError> {
+    check_output_path(path)?;
+    // `check_output_path` guaranteed an extension.
+    let ext = extension(path).unwrap_or_default();
+    let max = max_side(&ext).unwrap_or(c_int::MAX as usize);
+    if width > max || height > max {
+        return Err(ImageWriteError::TooLarge { path: path.to_path_buf(), width, height, extension: ext, max });
+    }
+    Ok(())
+}
+
+/// Checks, without writing an image, that one could be written to `path`: the name is not a
+/// directory, its directory exists and a file can be created there (tried: permissions, a
+/// read-only file system or a pseudo file system like /proc only show when one is), and
+/// OpenImageIO has a writer for its extension. Call it before a long render.
 pub fn check_output_path(path: &Path) -> Result<(), ImageWriteError> {
+    // `Path` drops a trailing '/' from its components (`o.exr/` has the extension "exr"), but
+    // the file system would refuse to create a file by that name.
+    if path.as_os_str().to_string_lossy().ends_with('/') {
+        return Err(ImageWriteError::TrailingSlash { path: path.to_path_buf() });
+    }
     let dir = target_dir(path);
     if !dir.exists() {
         return Err(ImageWriteError::MissingDirectory { path: path.to_path_buf(), dir: dir.to_path_buf() });
@@ -155,6 +204,11 @@ pub fn check_output_path(path: &Path) -> Result<(), ImageWriteError> {
     if status != PLX_OK {
         return Err(ImageWriteError::UnsupportedFormat { path: path.to_path_buf(), extension: ext });
     }
+    // Dropping the probe removes it.
+    tempfile::Builder::new()
+        .prefix(".plexus-write-check-")
+        .tempfile_in(dir)
+        .map_err(|source| ImageWriteError::NotWritable { path: path.to_path_buf(), dir: dir.to_path_buf(), source })?;
     Ok(())
 }
 
@@ -176,7 +230,7 @@ fn temp_file_beside(path: &Path, ext: &str) -> Result<tempfile::TempPath, ImageW
 
 /// Writes `image` to `path` in the format its extension names (see the module documentation).
 pub fn write_image(path: &Path, image: &Image, opts: &WriteOptions) -> Result<(), ImageWriteError> {
-    check_output_path(path)?;
+    check_output(path, image.width, image.height)?;
     let bad_image = || ImageWriteError::BadImage {
         path: path.to_path_buf(),
         width: image.width,

@@ -38,16 +38,31 @@ impl SceneError {
             Some(k) => format!("'{k}' of {table}"),
             None => table.clone(),
         };
+        // toml reports an error of the root table with the empty span 0..0 (a table's own errors
+        // span the table); the enclosing "table" is then whatever header comes first, which would
+        // misattribute it.
+        let root_table = span == (0..0);
         let message = if let Some(rest) = raw.strip_prefix("unknown field `") {
             let name = rest.split('`').next().unwrap_or_default();
             let expected = backticked(rest.split_once(", expected").map_or("", |(_, e)| e));
-            if expected.is_empty() {
+            if table == "the top level" || header_names_table(text, span.start, name) {
+                let tables: Vec<String> = expected.iter().map(|t| format!("[{t}]")).collect();
+                format!("unknown top-level table [{name}] (expected one of: {})", tables.join(", "))
+            } else if expected.is_empty() {
                 format!("unknown key '{name}' in {within} (this table takes no keys)")
             } else {
                 format!("unknown key '{name}' in {within} (expected one of: {})", expected.join(", "))
             }
         } else if let Some(rest) = raw.strip_prefix("missing field `") {
             let name = rest.split('`').next().unwrap_or_default();
+            if root_table || table == "the top level" {
+                // Every required top-level entry (today only `camera`) is a table.
+                return SceneError::Syntax {
+                    file: file.to_string(),
+                    location: "top level".to_string(),
+                    message: format!("missing [{name}] table (every scene needs one)"),
+                };
+            }
             format!("missing key '{name}' in {within}")
         } else if let Some(rest) = raw.strip_prefix("unknown variant `") {
             let name = rest.split('`').next().unwrap_or_default();
@@ -88,6 +103,18 @@ fn enclosing_table(text: &str, at: usize) -> String {
     "the top level".to_string()
 }
 
+/// Whether the line of byte offset `at` is a table header (`[name]`, `[name.sub]`, `[[name]]`)
+/// whose first key is `name`: the unknown key is then a top-level table.
+fn header_names_table(text: &str, at: usize, name: &str) -> bool {
+    let at = at.min(text.len());
+    let start = text[..at].rfind('\n').map_or(0, |i| i + 1);
+    let line = text[start..].lines().next().unwrap_or_default().trim();
+    let Some(inner) = line.strip_prefix('[') else { return false };
+    let inner = inner.trim_start_matches('[');
+    let first = inner.split([']', '.']).next().unwrap_or_default().trim().trim_matches(['"', '\'']);
+    first == name
+}
+
 /// The key on the line of `at`, when `at` lies after its `=` (the key whose value is wrong).
 fn line_key(text: &str, at: usize) -> Option<String> {
     let at = at.min(text.len());
@@ -124,4 +151,25 @@ fn backticked(s: &str) -> Vec<&str> {
 /// `[a, b, c]` with each number in its shortest form, as scene files write them.
 pub(crate) fn fmt3(v: [f32; 3]) -> String {
     format!("[{}, {}, {}]", v[0], v[1], v[2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// serde's span for a field missing from the root table does not start at the top of the
+    /// document when it begins with a header; the message must still name the root.
+    #[test]
+    fn missing_camera_is_a_missing_table_wherever_the_file_starts() {
+        for text in ["[render]\nspp = 4\n", "\n\n[materials.floor]\ntype = \"diffuse\"\n", ""] {
+            let e = toml::from_str::<crate::scene::desc::SceneDesc>(text).unwrap_err();
+            let msg = SceneError::from_toml("s.toml", text, &e).to_string();
+            assert!(msg.contains("missing [camera] table"), "{msg}");
+        }
+        // A key missing from a table at the top of the file is still that table's.
+        let text = "[camera]\nposition = [0, 0, 0]\nlook_at = [0, 0, 1]\nresolution = [8, 6]\n";
+        let e = toml::from_str::<crate::scene::desc::SceneDesc>(text).unwrap_err();
+        let msg = SceneError::from_toml("s.toml", text, &e).to_string();
+        assert!(msg.contains("missing key 'fov' in [camera]"), "{msg}");
+    }
 }

@@ -67,7 +67,7 @@ pub fn load_ply(path: &Path) -> Result<RawMesh, String> {
     let file = File::open(path).map_err(|e| e.to_string())?;
     let mut reader = BufReader::new(file);
     let parser = Parser::<DefaultElement>::new();
-    let ply = parser.read_ply(&mut reader).map_err(|e| format!("invalid PLY: {e}"))?;
+    let ply = parser.read_ply(&mut reader).map_err(|e| format!("invalid PLY: {}", ply_reason(&e.to_string())))?;
     let vertices = ply.payload.get("vertex").ok_or("invalid PLY: no 'vertex' element")?;
     let faces = ply.payload.get("face").ok_or("invalid PLY: no 'face' element")?;
 
@@ -117,6 +117,28 @@ pub fn load_ply(path: &Path) -> Result<RawMesh, String> {
         out.uvs = Some(uvs);
     }
     Ok(out)
+}
+
+/// ply-rs's parse errors span several lines and nest `Debug` output of inner `io::Error`s
+/// ("Line 8: Couln't read element line.\n\tString: 'zz\n'\n\tError: Custom { kind: ..., error:
+/// \"...\" }"). This keeps what names the culprit: the line number, the offending text and the
+/// innermost reason's first sentence, on one line.
+fn ply_reason(raw: &str) -> String {
+    let Some((line, rest)) = raw.strip_prefix("Line ").and_then(|r| r.split_once(':')) else {
+        return raw.split_whitespace().collect::<Vec<_>>().join(" ");
+    };
+    let text = rest.split_once("String: '").and_then(|(_, t)| t.split_once('\'')).map(|(t, _)| t.trim());
+    // The innermost `error: "..."` holds the reader's own words, `Debug`-escaped.
+    let reason = rest
+        .rsplit_once("error: \"")
+        .map(|(_, r)| r.split(['"']).next().unwrap_or_default())
+        .map(|r| r.split("\\n").next().unwrap_or_default().replace("\\'", "'"))
+        .unwrap_or_else(|| rest.lines().next().unwrap_or_default().to_string());
+    let reason = reason.trim().trim_end_matches('.');
+    match text {
+        Some(t) => format!("line {line}: cannot read '{t}': {reason}"),
+        None => format!("line {line}: {reason}"),
+    }
 }
 
 fn scalar(p: &Property) -> Option<f32> {

@@ -1,0 +1,237 @@
+//! Hostile inputs of issue 19 that used to fail late or name the wrong culprit. Each must be
+//! refused before any rendering with exit code 2 and one line `error: ...` on stderr naming the
+//! culprit; no image, no stats file and no "N samples" summary may appear. Every test renders at
+//! most a few 8×6 images at 1 spp, so the file takes about a second.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+/// A fresh, empty directory for one test.
+fn temp_dir(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("plexus-hostile-test-{name}-")).tempdir().expect("create temp dir")
+}
+
+fn plexus(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_plexus"))
+        .args(args)
+        .current_dir(cwd)
+        .env("CI", "true")
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .expect("run plexus")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A tiny valid scene (as in tests/cli.rs): a `{RESOLUTION}` camera looking at a diffuse floor
+/// under a one-sided area light; `{EXTRA}` is appended.
+const TEMPLATE: &str = r#"
+[camera]
+position = [0.0, 1.0, -3.0]
+look_at = [0.0, 0.5, 0.0]
+fov = 45.0
+resolution = {RESOLUTION}
+
+[materials.floor]
+type = "diffuse"
+reflectance = [0.5, 0.5, 0.5]
+
+[materials.lamp]
+type = "diffuse"
+reflectance = [0.0, 0.0, 0.0]
+
+[[shapes]]
+type = "quad"
+material = "floor"
+transform = { scale = [2.0, 2.0, 1.0], rotate = { axis = [1, 0, 0], angle = -90 } }
+
+[[shapes]]
+type = "quad"
+material = "lamp"
+emission = { radiance = [4.0, 4.0, 4.0] }
+transform = { scale = [0.5, 0.5, 1.0], rotate = { axis = [1, 0, 0], angle = 90 }, translate = [0.0, 2.0, 0.0] }
+{EXTRA}
+"#;
+
+fn scene_text(resolution: &str, extra: &str) -> String {
+    TEMPLATE.replace("{RESOLUTION}", resolution).replace("{EXTRA}", extra)
+}
+
+/// Writes `text` as `name` in `dir` and returns its path as a string.
+fn write(dir: &Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).expect("write test file");
+    p.to_string_lossy().into_owned()
+}
+
+/// Asserts exit code 2, exactly one line on stderr starting with `error: ` and containing every
+/// one of `needles`, no trace of a panic, and no render summary (the render never started).
+fn assert_refused(o: &Output, needles: &[&str]) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(2), "exit code; stderr: {err}");
+    assert!(!err.contains("panicked") && !err.contains("internal error"), "{err}");
+    assert!(!err.contains(" samples in "), "rendered before refusing: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "one line expected, got: {err}");
+    assert!(lines[0].starts_with("error: "), "{err}");
+    assert!(!lines[0].contains('\t'), "tabs in: {err}");
+    for n in needles {
+        assert!(lines[0].contains(n), "expected '{n}' in: {err}");
+    }
+}
+
+/// Renders `args` in `dir`, expects a refusal naming `needles`, and that `dir` holds only
+/// `kept` afterwards (no image, stats or temporary file).
+fn refused(dir: &Path, args: &[&str], needles: &[&str], kept: &[&str]) {
+    let o = plexus(args, dir);
+    assert_refused(&o, needles);
+    let mut left: Vec<String> = std::fs::read_dir(dir)
+        .expect("list test dir")
+        .map(|e| e.expect("dir entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    let mut kept: Vec<String> = kept.iter().map(|s| s.to_string()).collect();
+    kept.sort();
+    assert_eq!(left, kept, "files left in the output directory");
+}
+
+/// `/proc` exists and is a directory, but no file can be created in it: the old check (directory
+/// exists) passed and the write failed after the render. Old behaviour (main at df7651c): exit 1,
+/// "cannot write '/proc/o.exr': No such file or directory (os error 2) at path
+/// \"/proc/.o.plexus-tmp-pUwruW.exr\"" — naming the temporary file, not the reason.
+#[test]
+fn unwritable_output_directory_is_refused_before_rendering() {
+    let tmp = temp_dir("proc");
+    let dir = tmp.path();
+    let scene = write(dir, "s.toml", &scene_text("[8, 6]", ""));
+    refused(
+        dir,
+        &["render", &scene, "--spp", "1", "--out", "/proc/o.exr"],
+        &["/proc/o.exr", "cannot create a file in '/proc'"],
+        &["s.toml"],
+    );
+}
+
+/// `o.exr/` has the extension "exr" to `Path`, but names a directory. Old behaviour (df7651c):
+/// exit 1 after the render, "cannot write 'o.exr/': Not a directory (os error 20): Not a directory
+/// (os error 20)".
+#[test]
+fn output_with_trailing_slash_is_refused_before_rendering() {
+    let tmp = temp_dir("slash");
+    let dir = tmp.path();
+    let scene = write(dir, "s.toml", &scene_text("[8, 6]", ""));
+    refused(dir, &["render", &scene, "--spp", "1", "--out", "o.exr/"], &["o.exr/", "ends with '/'"], &["s.toml"]);
+}
+
+/// libjpeg writes at most 65500 pixels per side. The camera is 65501×1 with 1 spp, so even the
+/// old behaviour took well under a second: df7651c rendered, then exit 1 with "OpenImageIO: JPEG
+/// images can be at most 65500 pixels wide and high, not 65501x1" (the limit the table uses).
+#[test]
+fn jpeg_wider_than_the_format_allows_is_refused_before_rendering() {
+    let tmp = temp_dir("jpeg");
+    let dir = tmp.path();
+    let scene = write(dir, "s.toml", &scene_text("[65501, 1]", ""));
+    refused(dir, &["render", &scene, "--spp", "1", "--out", "o.jpg"], &["o.jpg", "65501x1", "65500"], &["s.toml"]);
+}
+
+/// The stats go to `o.json` beside `o.exr`; a directory of that name used to fail after the
+/// render and after `o.exr` was written: df7651c exit 1, "cannot write the stats file o.json: Is
+/// a directory (os error 21)".
+#[test]
+fn stats_path_that_is_a_directory_is_refused_before_rendering() {
+    let tmp = temp_dir("json-dir");
+    let dir = tmp.path();
+    let scene = write(dir, "s.toml", &scene_text("[8, 6]", ""));
+    std::fs::create_dir(dir.join("o.json")).expect("create o.json/");
+    refused(
+        dir,
+        &["render", &scene, "--spp", "1", "--out", "o.exr"],
+        &["o.json", "is a directory"],
+        &["s.toml", "o.json"],
+    );
+}
+
+/// Old behaviour (df7651c): "missing key 'camera' in the top level", or, as here when the file
+/// starts with another table, "line 1: missing key 'camera' in [materials.floor]".
+#[test]
+fn missing_camera_is_reported_as_a_missing_camera_table() {
+    let tmp = temp_dir("no-camera");
+    let dir = tmp.path();
+    let text = scene_text("[8, 6]", "");
+    let start = text.find("[camera]").expect("camera header");
+    let end = text.find("[materials.floor]").expect("materials header");
+    let without = format!("{}{}", &text[..start], &text[end..]);
+    let scene = write(dir, "s.toml", without.trim_start());
+    refused(
+        dir,
+        &["render", &scene, "--spp", "1", "--out", "o.exr"],
+        &["s.toml", "missing [camera] table"],
+        &["s.toml"],
+    );
+}
+
+/// Old behaviour (df7651c): "line 2: unknown key 'camara' in [camara] (expected one of: camera,
+/// ...)" — the table reported as a key of itself.
+#[test]
+fn unknown_top_level_table_is_named_with_the_valid_ones() {
+    let tmp = temp_dir("camara");
+    let dir = tmp.path();
+    let scene = write(dir, "s.toml", &scene_text("[8, 6]", "").replace("[camera]", "[camara]"));
+    refused(
+        dir,
+        &["render", &scene, "--spp", "1", "--out", "o.exr"],
+        &["s.toml", "line 2", "unknown top-level table [camara]", "[camera]", "[shapes]", "[render]"],
+        &["s.toml"],
+    );
+}
+
+/// A PLY whose last vertex line is short. Old behaviour (df7651c, failing the tab assertion): one
+/// line only after newline joining,
+/// with tabs and nested `Debug` output: "invalid PLY: Line 11: Couln't read element line. \tString:
+/// '1 0 ' \tError: Custom { kind: InvalidInput, error: \"Expected element ...\" }".
+#[test]
+fn truncated_ply_is_one_line_naming_file_and_line() {
+    let tmp = temp_dir("ply");
+    let dir = tmp.path();
+    let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+               element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0\n";
+    write(dir, "bad.ply", ply);
+    let extra = "[[shapes]]\ntype = \"ply\"\nfile = \"bad.ply\"\nmaterial = \"floor\"\n";
+    let scene = write(dir, "s.toml", &scene_text("[8, 6]", extra));
+    refused(
+        dir,
+        &["render", &scene, "--spp", "1", "--out", "o.exr"],
+        &["s.toml", "shapes[2].file", "bad.ply", "line 11", "'1 0'", "but found nothing"],
+        &["s.toml", "bad.ply"],
+    );
+    assert!(!stderr(&plexus(&["render", &scene, "--spp", "1"], dir)).contains("Custom {"));
+}
+
+/// Previews are written between passes through hidden temporary files; with a preview after every
+/// pass, five renders in a row must leave only the final image and stats (the issue saw a hidden
+/// `.o.plexus-tmp-*` one run in six on the writer before `tempfile`). This test passes on df7651c
+/// too: the preview is written on the driver's thread between passes (no race with the final
+/// write) and `tempfile::TempPath` removes the file on every error or unwind path. Shown to fail
+/// on a writer that copies the finished temporary file into place and keeps it: run 0 left
+/// `.o.plexus-tmp-*.exr` ×2 and `.o.plexus-tmp-*.png` ×2 (one preview and the final image each).
+#[test]
+fn previews_leave_no_temporary_file() {
+    let tmp = temp_dir("preview");
+    let dir = tmp.path();
+    let scene = write(dir, "s.toml", &scene_text("[8, 6]", ""));
+    for run in 0..5 {
+        let o = plexus(
+            &["render", &scene, "--spp", "4", "--preview-every", "1e-9", "--out", "o.exr", "--out", "o.png"],
+            dir,
+        );
+        assert_eq!(o.status.code(), Some(0), "run {run}: {}", stderr(&o));
+        let mut left: Vec<String> = std::fs::read_dir(dir)
+            .expect("list test dir")
+            .map(|e| e.expect("dir entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["o.exr", "o.json", "o.png", "s.toml"], "run {run}");
+    }
+}
