@@ -231,6 +231,12 @@ fn temp_file_beside(path: &Path, ext: &str) -> Result<tempfile::TempPath, ImageW
 /// Writes `image` to `path` in the format its extension names (see the module documentation).
 pub fn write_image(path: &Path, image: &Image, opts: &WriteOptions) -> Result<(), ImageWriteError> {
     check_output(path, image.width, image.height)?;
+    encode_through_temp_file(path, image, opts)
+}
+
+/// The writing half of [`write_image`], after its checks: encodes through OpenImageIO into a
+/// temporary file beside `path` and renames it into place; on any failure the temporary is removed.
+fn encode_through_temp_file(path: &Path, image: &Image, opts: &WriteOptions) -> Result<(), ImageWriteError> {
     let bad_image = || ImageWriteError::BadImage {
         path: path.to_path_buf(),
         width: image.width,
@@ -292,6 +298,21 @@ pub fn write_image(path: &Path, image: &Image, opts: &WriteOptions) -> Result<()
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A failure after OpenImageIO has created the temporary file removes it, and the message names
+    /// the requested file, not the temporary. libwebp refuses images wider than 16383 pixels only
+    /// when it encodes them, at close; `write_image` refuses such an image before (`check_output`),
+    /// so the writing half is called directly here.
+    #[test]
+    fn a_failure_at_close_leaves_no_temporary_file() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("wide.webp");
+        let err = encode_through_temp_file(&path, &Image::new(20_000, 1), &WriteOptions::default()).unwrap_err();
+        assert!(matches!(err, ImageWriteError::Oiio { .. }), "{err}");
+        assert!(err.to_string().contains("wide.webp") && !err.to_string().contains("plexus-tmp"), "{err}");
+        let left: Vec<_> = std::fs::read_dir(dir.path()).expect("read dir").collect();
+        assert!(left.is_empty(), "left behind: {left:?}");
+    }
 
     #[test]
     fn encodings_follow_the_extension() {
