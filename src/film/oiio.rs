@@ -310,6 +310,11 @@ mod tests {
         let err = encode_through_temp_file(&path, &Image::new(20_000, 1), &WriteOptions::default()).unwrap_err();
         assert!(matches!(err, ImageWriteError::Oiio { .. }), "{err}");
         assert!(err.to_string().contains("wide.webp") && !err.to_string().contains("plexus-tmp"), "{err}");
+        // libjpeg would exit() the process on an image above its size limit; the shim refuses it
+        // too, behind `check_output`.
+        let jpg = dir.path().join("wide.jpg");
+        let err = encode_through_temp_file(&jpg, &Image::new(70_000, 1), &WriteOptions::default()).unwrap_err();
+        assert!(err.to_string().contains("at most 65500 pixels"), "{err}");
         let left: Vec<_> = std::fs::read_dir(dir.path()).expect("read dir").collect();
         assert!(left.is_empty(), "left behind: {left:?}");
     }
