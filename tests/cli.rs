@@ -3,26 +3,10 @@
 //! a panic or a backtrace — and a tiny successful render writes EXR, PNG and the JSON stats.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-/// A fresh, empty directory for one test.
-fn temp_dir(name: &str) -> tempfile::TempDir {
-    tempfile::Builder::new().prefix(&format!("plexus-cli-test-{name}-")).tempdir().expect("create temp dir")
-}
-
-fn plexus(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_plexus"))
-        .args(args)
-        .current_dir(cwd)
-        .env("CI", "true")
-        .env_remove("RUST_BACKTRACE")
-        .output()
-        .expect("run plexus")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::binary::{plexus, stderr, temp_dir};
 
 /// A tiny valid scene: an 8×6 camera looking at a diffuse floor under a one-sided area light.
 /// `{MATERIAL}`, `{EMISSION}`, `{RESOLUTION}` and `{EXTRA}` are substituted by the tests.

@@ -4,60 +4,10 @@
 //! most a few 8×6 images at 1 spp, so the file takes about a second.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-/// A fresh, empty directory for one test.
-fn temp_dir(name: &str) -> tempfile::TempDir {
-    tempfile::Builder::new().prefix(&format!("plexus-hostile-test-{name}-")).tempdir().expect("create temp dir")
-}
-
-fn plexus(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_plexus"))
-        .args(args)
-        .current_dir(cwd)
-        .env("CI", "true")
-        .env_remove("RUST_BACKTRACE")
-        .output()
-        .expect("run plexus")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// A tiny valid scene (as in tests/cli.rs): a `{RESOLUTION}` camera looking at a diffuse floor
-/// under a one-sided area light; `{EXTRA}` is appended.
-const TEMPLATE: &str = r#"
-[camera]
-position = [0.0, 1.0, -3.0]
-look_at = [0.0, 0.5, 0.0]
-fov = 45.0
-resolution = {RESOLUTION}
-
-[materials.floor]
-type = "diffuse"
-reflectance = [0.5, 0.5, 0.5]
-
-[materials.lamp]
-type = "diffuse"
-reflectance = [0.0, 0.0, 0.0]
-
-[[shapes]]
-type = "quad"
-material = "floor"
-transform = { scale = [2.0, 2.0, 1.0], rotate = { axis = [1, 0, 0], angle = -90 } }
-
-[[shapes]]
-type = "quad"
-material = "lamp"
-emission = { radiance = [4.0, 4.0, 4.0] }
-transform = { scale = [0.5, 0.5, 1.0], rotate = { axis = [1, 0, 0], angle = 90 }, translate = [0.0, 2.0, 0.0] }
-{EXTRA}
-"#;
-
-fn scene_text(resolution: &str, extra: &str) -> String {
-    TEMPLATE.replace("{RESOLUTION}", resolution).replace("{EXTRA}", extra)
-}
+mod common;
+use common::binary::{plexus, stderr, temp_dir, tiny_scene};
 
 /// Writes `text` as `name` in `dir` and returns its path as a string.
 fn write(dir: &Path, name: &str, text: &str) -> String {
@@ -105,7 +55,7 @@ fn refused(dir: &Path, args: &[&str], needles: &[&str], kept: &[&str]) {
 fn unwritable_output_directory_is_refused_before_rendering() {
     let tmp = temp_dir("proc");
     let dir = tmp.path();
-    let scene = write(dir, "s.toml", &scene_text("[8, 6]", ""));
+    let scene = write(dir, "s.toml", &tiny_scene("[8, 6]", ""));
     refused(
         dir,
         &["render", &scene, "--spp", "1", "--out", "/proc/o.exr"],
@@ -121,7 +71,7 @@ fn unwritable_output_directory_is_refused_before_rendering() {
 fn output_with_trailing_slash_is_refused_before_rendering() {
     let tmp = temp_dir("slash");
     let dir = tmp.path();
-    let scene = write(dir, "s.toml", &scene_text("[8, 6]", ""));
+    let scene = write(dir, "s.toml", &tiny_scene("[8, 6]", ""));
     refused(dir, &["render", &scene, "--spp", "1", "--out", "o.exr/"], &["o.exr/", "ends with '/'"], &["s.toml"]);
 }
 
@@ -132,7 +82,7 @@ fn output_with_trailing_slash_is_refused_before_rendering() {
 fn jpeg_wider_than_the_format_allows_is_refused_before_rendering() {
     let tmp = temp_dir("jpeg");
     let dir = tmp.path();
-    let scene = write(dir, "s.toml", &scene_text("[65501, 1]", ""));
+    let scene = write(dir, "s.toml", &tiny_scene("[65501, 1]", ""));
     refused(dir, &["render", &scene, "--spp", "1", "--out", "o.jpg"], &["o.jpg", "65501x1", "65500"], &["s.toml"]);
 }
 
@@ -143,7 +93,7 @@ fn jpeg_wider_than_the_format_allows_is_refused_before_rendering() {
 fn stats_path_that_is_a_directory_is_refused_before_rendering() {
     let tmp = temp_dir("json-dir");
     let dir = tmp.path();
-    let scene = write(dir, "s.toml", &scene_text("[8, 6]", ""));
+    let scene = write(dir, "s.toml", &tiny_scene("[8, 6]", ""));
     std::fs::create_dir(dir.join("o.json")).expect("create o.json/");
     refused(
         dir,
@@ -159,7 +109,7 @@ fn stats_path_that_is_a_directory_is_refused_before_rendering() {
 fn missing_camera_is_reported_as_a_missing_camera_table() {
     let tmp = temp_dir("no-camera");
     let dir = tmp.path();
-    let text = scene_text("[8, 6]", "");
+    let text = tiny_scene("[8, 6]", "");
     let start = text.find("[camera]").expect("camera header");
     let end = text.find("[materials.floor]").expect("materials header");
     let without = format!("{}{}", &text[..start], &text[end..]);
@@ -178,7 +128,7 @@ fn missing_camera_is_reported_as_a_missing_camera_table() {
 fn unknown_top_level_table_is_named_with_the_valid_ones() {
     let tmp = temp_dir("camara");
     let dir = tmp.path();
-    let scene = write(dir, "s.toml", &scene_text("[8, 6]", "").replace("[camera]", "[camara]"));
+    let scene = write(dir, "s.toml", &tiny_scene("[8, 6]", "").replace("[camera]", "[camara]"));
     refused(
         dir,
         &["render", &scene, "--spp", "1", "--out", "o.exr"],
@@ -199,7 +149,7 @@ fn truncated_ply_is_one_line_naming_file_and_line() {
                element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0\n";
     write(dir, "bad.ply", ply);
     let extra = "[[shapes]]\ntype = \"ply\"\nfile = \"bad.ply\"\nmaterial = \"floor\"\n";
-    let scene = write(dir, "s.toml", &scene_text("[8, 6]", extra));
+    let scene = write(dir, "s.toml", &tiny_scene("[8, 6]", extra));
     refused(
         dir,
         &["render", &scene, "--spp", "1", "--out", "o.exr"],
@@ -220,7 +170,7 @@ fn truncated_ply_is_one_line_naming_file_and_line() {
 fn previews_leave_no_temporary_file() {
     let tmp = temp_dir("preview");
     let dir = tmp.path();
-    let scene = write(dir, "s.toml", &scene_text("[8, 6]", ""));
+    let scene = write(dir, "s.toml", &tiny_scene("[8, 6]", ""));
     for run in 0..5 {
         let o = plexus(
             &["render", &scene, "--spp", "4", "--preview-every", "1e-9", "--out", "o.exr", "--out", "o.png"],

@@ -10,56 +10,13 @@
 //! on a clock: a regression shows as a hang the suite's runner reports, not as a flaky bound.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-/// A fresh, empty directory for one test.
-fn temp_dir(name: &str) -> tempfile::TempDir {
-    tempfile::Builder::new().prefix(&format!("plexus-limits-test-{name}-")).tempdir().expect("create temp dir")
-}
-
-fn plexus(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_plexus"))
-        .args(args)
-        .current_dir(cwd)
-        .env("CI", "true")
-        .env_remove("RUST_BACKTRACE")
-        .output()
-        .expect("run plexus")
-}
-
-/// A tiny valid scene: a `{RESOLUTION}` camera looking at a diffuse floor under an area light, plus
-/// `{EXTRA}` (e.g. a `[render]` table).
-const TEMPLATE: &str = r#"
-[camera]
-position = [0.0, 1.0, -3.0]
-look_at = [0.0, 0.5, 0.0]
-fov = 45.0
-resolution = {RESOLUTION}
-
-[materials.floor]
-type = "diffuse"
-reflectance = [0.5, 0.5, 0.5]
-
-[materials.lamp]
-type = "diffuse"
-reflectance = [0.0, 0.0, 0.0]
-
-[[shapes]]
-type = "quad"
-material = "floor"
-transform = { scale = [2.0, 2.0, 1.0], rotate = { axis = [1, 0, 0], angle = -90 } }
-
-[[shapes]]
-type = "quad"
-material = "lamp"
-emission = { radiance = [5.0, 5.0, 5.0] }
-transform = { scale = [0.5, 0.5, 1.0], rotate = { axis = [1, 0, 0], angle = 90 }, translate = [0.0, 2.0, 0.0] }
-{EXTRA}
-"#;
+mod common;
+use common::binary::{plexus, temp_dir, tiny_scene};
 
 /// Writes the scene at `resolution` with `extra` into `dir` as `scene.toml`.
 fn write_scene(dir: &Path, resolution: &str, extra: &str) {
-    let text = TEMPLATE.replace("{RESOLUTION}", resolution).replace("{EXTRA}", extra);
+    let text = tiny_scene(resolution, extra);
     std::fs::write(dir.join("scene.toml"), text).expect("write scene");
 }
 
