@@ -154,6 +154,9 @@ pub struct JumpStats {
     /// Inverses whose regenerated path is not the current one.
     pub path_mismatches: u64,
     /// Valid jumps whose ratio r of Eq. 38/43 was off 1 by more than 1e-3, and the largest |r − 1|.
+    /// A diagnostic of rounding only: r's density ratio comes from the two techniques' own f/p of
+    /// the same path, so r is 1 by construction whatever the Jacobians; the Jacobians are checked
+    /// against BDPT's densities by `pss/inverse.rs`'s tests, not by these figures.
     #[serde(rename = "ratio_off_by_more_than_1e-3")]
     pub ratio_off: u64,
     pub ratio_max_deviation: f64,
