@@ -53,7 +53,7 @@ impl Bvh {
             .flat_map_iter(|(geom, mesh)| {
                 (0..mesh.triangle_count() as u32).filter_map(move |prim| {
                     let [a, b, c] = mesh.triangle(prim);
-                    ((b - a).cross(c - a) != Vec3::ZERO).then(|| BuildPrim {
+                    (!crate::geometry::triangle_is_degenerate(a, b, c)).then(|| BuildPrim {
                         min: a.min(b).min(c),
                         geom: geom as u32,
                         max: a.max(b).max(c),

@@ -1,6 +1,6 @@
 use glam::{Vec2, Vec3};
 
-use super::{gamma, spawn_ray, spawn_ray_to, Frame, Hit, Ray, TriangleMesh};
+use super::{gamma, spawn_ray, spawn_ray_to, triangle_normal, Frame, Hit, Ray, TriangleMesh};
 
 /// Everything shading needs about a ray's hit on a surface.
 #[derive(Clone, Copy, Debug)]
@@ -30,8 +30,7 @@ impl SurfaceInteraction {
         let b0 = 1.0 - b1 - b2;
         let p = v0 * b0 + v1 * b1 + v2 * b2;
         let p_error = gamma(7) * ((v0 * b0).abs() + (v1 * b1).abs() + (v2 * b2).abs());
-        let cross = (v1 - v0).cross(v2 - v0);
-        let ng = cross.normalize_or(Vec3::Z);
+        let ng = triangle_normal(v0, v1, v2);
         let idx = mesh.indices()[hit.prim_id as usize];
         let ns = match mesh.normals() {
             Some(ns) => {

@@ -20,6 +20,37 @@ pub enum MeshError {
     TooManyVertices(usize),
 }
 
+/// The cross product of a triangle's edges, in f64. Its components scale as the square of the
+/// triangle's size and its squared length as the fourth power: in f32 the squared length
+/// overflows for edges beyond about 4e9 and is flushed to zero (Embree's threads run with
+/// flush-to-zero) below about 1e-10, which once turned every normal of a scene modelled in
+/// kilometres-as-millimetres into `Vec3::Z` and rendered it at a sixth of its brightness
+/// (issue 19). In f64 both powers stay in range for every f32 coordinate.
+#[inline]
+fn edge_cross(a: Vec3, b: Vec3, c: Vec3) -> glam::DVec3 {
+    (b - a).as_dvec3().cross((c - a).as_dvec3())
+}
+
+/// Unit normal of the triangle `a b c` by its winding, at any scale; `Vec3::Z` for a degenerate
+/// (or non-finite) one.
+#[inline]
+pub fn triangle_normal(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    edge_cross(a, b, c).try_normalize().map_or(Vec3::Z, |n| n.as_vec3())
+}
+
+/// Area of the triangle `a b c`, at any scale (infinite only when the area itself exceeds f32).
+#[inline]
+pub fn triangle_area(a: Vec3, b: Vec3, c: Vec3) -> f32 {
+    (0.5 * edge_cross(a, b, c).length()) as f32
+}
+
+/// Whether the triangle `a b c` has a non-zero area (at any scale: an f32 cross product of a
+/// triangle 1e-20 across is flushed to zero).
+#[inline]
+pub fn triangle_is_degenerate(a: Vec3, b: Vec3, c: Vec3) -> bool {
+    edge_cross(a, b, c) == glam::DVec3::ZERO
+}
+
 /// An indexed triangle mesh in world space, owned by Rust and shared (not copied) with Embree and
 /// the in-house BVH.
 ///
@@ -113,7 +144,13 @@ impl TriangleMesh {
     }
     pub fn triangle_area(&self, prim: u32) -> f32 {
         let [a, b, c] = self.triangle(prim);
-        0.5 * (b - a).cross(c - a).length()
+        triangle_area(a, b, c)
+    }
+    /// Unit geometric normal of triangle `prim` (its winding); `Vec3::Z` for a degenerate one.
+    #[inline]
+    pub fn triangle_normal(&self, prim: u32) -> Vec3 {
+        let [a, b, c] = self.triangle(prim);
+        triangle_normal(a, b, c)
     }
     pub fn surface_area(&self) -> f64 {
         (0..self.indices.len() as u32).map(|i| self.triangle_area(i) as f64).sum()

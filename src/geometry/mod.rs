@@ -11,7 +11,7 @@ mod ray;
 
 pub use frame::Frame;
 pub use interaction::SurfaceInteraction;
-pub use mesh::{MeshError, TriangleMesh};
+pub use mesh::{triangle_area, triangle_is_degenerate, triangle_normal, MeshError, TriangleMesh};
 pub use ray::{offset_ray_origin, spawn_ray, spawn_ray_to, Aabb, Hit, Ray};
 
 /// γ(n) = nε/(1−nε) with ε the unit roundoff: the standard bound on accumulated rounding error

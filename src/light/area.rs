@@ -38,8 +38,7 @@ pub struct MeshPoint {
 
 /// Unit geometric normal of triangle `prim`, computed exactly as `SurfaceInteraction::from_hit` does.
 pub fn triangle_normal(mesh: &TriangleMesh, prim: u32) -> Vec3 {
-    let [v0, v1, v2] = mesh.triangle(prim);
-    (v1 - v0).cross(v2 - v0).normalize_or(Vec3::Z)
+    mesh.triangle_normal(prim)
 }
 
 /// Uniform point on triangle `prim` of `mesh` from 2 uniforms; its area density is 1/area.
