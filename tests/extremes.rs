@@ -1,4 +1,5 @@
-//! The renderer at the extremes: scene scale from 1e-3 to 1e4, far from the origin, near-mirror
+//! The renderer at the extremes: scene scale from 1e-3 to 1e4 and at both edges of the validated
+//! range (scenes spanning 1e-9 to 1e12 units; outside it the loader refuses), far from the origin, near-mirror
 //! roughness, emitters from 1e-6 to 1e6, a camera grazing a large plane, and paths of 64 bounces.
 //! Every output must be finite with no contribution dropped as non-finite, and must agree with an
 //! ordinary render (or a closed form) within a statistical bound.
@@ -21,7 +22,7 @@ use std::path::Path;
 use glam::Vec3;
 use plexus::film::Image;
 use plexus::integrator::{self, Budget, RenderJob, RenderOutput};
-use plexus::scene::load_scene_str;
+use plexus::scene::{load_scene_str, MAX_EXTENT, MIN_EXTENT};
 use plexus::spectrum::luminance;
 
 /// Threshold of every z statistic (see the module documentation).
@@ -214,6 +215,16 @@ fn z_test_detects_a_five_percent_bias() {
     assert!(z[16] > Z_MAX, "a 5% brighter image must be rejected; whole-image z = {:.2}", z[16]);
 }
 
+/// The room spans 1359.2 units (x 0..556, y 0..548.8, z −800..559.2 with the camera): these
+/// scales put it just inside the edges of the validated range [`MIN_EXTENT`, `MAX_EXTENT`].
+const EDGE_LOW: f32 = 7.36e-13;
+const EDGE_HIGH: f32 = 7.35e8;
+
+/// The edges of the range render the same image as the unit-scale room (whole-image luminance
+/// means, pt, 256 spp: 0.13753 at unit scale, 0.13825 at 7.36e-13 (z = 0.62, max region |z| 1.30)
+/// and 0.13715 at 7.35e8 (z = −0.37, max 1.58)). Fails on the old code (main at 94429d5), whose
+/// f32 triangle normals overflowed or flushed to zero: the same room at 64 spp rendered a mean
+/// 0.53× of unit scale at scale 1e7, 0.010× at 1e8, 0 at 1e9, 0.48× at 1e-12 and 0 at 1e-13.
 #[test]
 fn scale_and_translation_do_not_change_the_image() {
     let base = estimate(&Room::default().toml(), "", SPP, 11);
@@ -221,10 +232,30 @@ fn scale_and_translation_do_not_change_the_image() {
         ("scaled by 1e-3", 1e-3, Vec3::ZERO, 12),
         ("scaled by 1e4", 1e4, Vec3::ZERO, 13),
         ("translated by 1e5", 1.0, Vec3::new(1e5, -1e5, 1e5), 14),
+        ("scaled to the range's lower edge", EDGE_LOW, Vec3::ZERO, 15),
+        ("scaled to the range's upper edge", EDGE_HIGH, Vec3::ZERO, 16),
     ] {
         let text = Room { scale, offset, ..Room::default() }.toml();
         let img = estimate(&text, "", SPP, seed);
         assert_same_image(&img, &base, what);
+    }
+}
+
+/// Just outside the validated range the loader refuses, naming the scene's extent and the range.
+#[test]
+fn scenes_outside_the_validated_scale_range_are_refused() {
+    assert!((MIN_EXTENT, MAX_EXTENT) == (1e-9, 1e12), "the README and docs/scene-format.md state this range");
+    for scale in [EDGE_LOW * 0.99, EDGE_HIGH * 1.01, 1e-16, 1e15] {
+        let text = Room { scale, ..Room::default() }.toml();
+        let err = match load_scene_str(&text, Path::new("."), "<room>", None) {
+            Ok(_) => panic!("scale {scale:e}: loaded"),
+            Err(e) => e.to_string(),
+        };
+        assert!(err.contains("<room>: ") && !err.contains('\n'), "{err}");
+        assert!(err.contains("1e-9 to 1e12 units"), "scale {scale:e}: {err}");
+    }
+    for scale in [EDGE_LOW, EDGE_HIGH] {
+        assert!(load_scene_str(&Room { scale, ..Room::default() }.toml(), Path::new("."), "<room>", None).is_ok());
     }
 }
 

@@ -55,7 +55,9 @@ pub fn matrix_from_desc(desc: &TransformDesc) -> Result<Mat4, String> {
         }
         Mat4::from_translation(t) * Mat4::from_mat3(r) * Mat4::from_scale(s)
     };
-    let det = Mat3::from_mat4(m).determinant();
+    // In f64: the determinant is a cube of the scale, which overflows (or flushes to zero) in f32
+    // for scales within the validated range (a box scaled by 1e13, say).
+    let det = Mat3::from_mat4(m).as_dmat3().determinant();
     if det == 0.0 || !det.is_finite() {
         return Err(format!("expected an invertible transform, got determinant {det}"));
     }
@@ -66,14 +68,15 @@ pub fn matrix_from_desc(desc: &TransformDesc) -> Result<Mat4, String> {
 /// mirroring transform (negative determinant) reverses the winding so that the geometric normal
 /// (from the winding) keeps pointing to the same side of the surface as before.
 pub fn apply(mesh: &mut RawMesh, m: &Mat4) {
-    let linear = Mat3::from_mat4(*m);
+    let linear = Mat3::from_mat4(*m).as_dmat3();
+    // In f64, as the determinant in `matrix_from_desc`: the inverse divides by it.
     let normal_matrix = linear.inverse().transpose();
     for p in &mut mesh.positions {
         *p = m.transform_point3(*p);
     }
     if let Some(normals) = &mut mesh.normals {
         for n in normals.iter_mut() {
-            *n = (normal_matrix * *n).normalize_or_zero();
+            *n = (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3();
         }
     }
     if linear.determinant() < 0.0 {
