@@ -11,6 +11,7 @@ mod progress;
 mod reference;
 mod render;
 mod stats_json;
+mod warnings;
 
 use clap::{Parser, Subcommand};
 

@@ -89,6 +89,7 @@ pub fn run_reference(args: &ReferenceArgs) -> anyhow::Result<()> {
     let output = integ.render(&loaded.scene, &job, &progress);
     progress.finish();
     let output = output?;
+    super::warnings::print_render_warnings(&output);
     if !output.image.all_finite() {
         anyhow::bail!("the reference has non-finite pixels; not writing {}", args.out.display());
     }

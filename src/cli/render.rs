@@ -121,6 +121,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let output = integrator.render(scene, &job, &progress);
     progress.finish();
     let output = output?;
+    super::warnings::print_render_warnings(&output);
 
     for path in &plan.outputs {
         write_image(path, &output.image, &WriteOptions::default())?;

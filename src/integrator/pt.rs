@@ -308,7 +308,12 @@ impl PathTracer {
                 let raster = Vec2::new(x as f32 + rng.uniform(), y as f32 + rng.uniform());
                 let ray = scene.camera.ray_through(raster);
                 let l = self.li(scene, ray, rng, &mut slot.counters);
-                slot.film.add(x as usize, y as usize, l);
+                // `li` adds only finite contributions, but their sum can still overflow.
+                if is_finite(l) {
+                    slot.film.add(x as usize, y as usize, l);
+                } else {
+                    slot.counters.nonfinite_dropped += 1;
+                }
             },
         );
         Ok(run)

@@ -167,6 +167,7 @@ impl Builder<'_> {
             };
             self.refuse_delta_emitter(&key, &name, light.kind())?;
         }
+        self.check_light_power(&lights, &infos)?;
         if lights.is_empty() {
             return Err(self.err(
                 "shapes",
@@ -221,6 +222,46 @@ impl Builder<'_> {
         }
         if largest > MAX_EXTENT {
             return Err(self.err("shapes", format!("the scene reaches coordinate {largest:e}; {range}")));
+        }
+        Ok(())
+    }
+
+    /// `radiance` (already multiplied by its `scale`), refused when a component exceeds
+    /// [`MAX_RADIANCE`].
+    fn radiance_in_range(&self, key: &str, radiance: Rgb) -> Result<Rgb, SceneError> {
+        if radiance.is_finite() && radiance.max_element() <= MAX_RADIANCE {
+            return Ok(radiance);
+        }
+        Err(self.err(
+            key,
+            format!(
+                "radiance × scale = {} exceeds the largest radiance plexus accepts, {MAX_RADIANCE:e}",
+                fmt3(radiance.to_array())
+            ),
+        ))
+    }
+
+    /// Refuses lights whose flux (radiance × area × π, the light sampler's weight) or whose sum
+    /// overflows f32: the selection distribution would be NaN. Within the radiance and scale
+    /// ranges this takes a bright emitter of a huge area (1e20 × 1e24 units² overflows).
+    fn check_light_power(&self, lights: &[Light], infos: &[ShapeInfo]) -> Result<(), SceneError> {
+        let mut total = 0.0f64;
+        for (index, light) in lights.iter().enumerate() {
+            let power = light.power();
+            total += power as f64;
+            if !(power.is_finite() && total <= f32::MAX as f64) {
+                let key = match infos.iter().position(|info| info.light == Some(index as u32)) {
+                    Some(geom_id) => format!("shapes[{geom_id}].emission"),
+                    None => "environment".to_string(),
+                };
+                return Err(self.err(
+                    key,
+                    format!(
+                        "the emitted power (radiance × area × π) overflows f32 ({power:e}, all lights {total:e}): \
+                         lower the radiance or the scene's scale"
+                    ),
+                ));
+            }
         }
         Ok(())
     }
@@ -420,7 +461,7 @@ impl Builder<'_> {
                         self.err(key("emission.scale"), format!("expected a finite number ≥ 0, got {}", e.scale))
                     );
                 }
-                Some((radiance * e.scale, e.two_sided))
+                Some((self.radiance_in_range(&key("emission"), radiance * e.scale)?, e.two_sided))
             }
             None => None,
         };
@@ -486,7 +527,8 @@ impl Builder<'_> {
         if env.kind == "constant" {
             let c = env.radiance.ok_or_else(|| self.err("environment", "a 'constant' environment needs 'radiance'"))?;
             let radiance = self.color("environment.radiance", c, "every component ≥ 0", |v| v >= 0.0)?;
-            return Ok(Light::ConstantEnvironment(ConstantEnvironment::new(radiance * scale, *bounds)));
+            let radiance = self.radiance_in_range("environment", radiance * scale)?;
+            return Ok(Light::ConstantEnvironment(ConstantEnvironment::new(radiance, *bounds)));
         }
         let file = env
             .file
@@ -507,6 +549,25 @@ impl Builder<'_> {
                     fmt3(p.to_array()),
                     i % image.width,
                     i / image.width
+                ),
+            ));
+        }
+        // The brightest texel channel (and where), as the renderer will see it: times `scale`.
+        let (brightest, at) = image
+            .pixels
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (p.max_element(), i))
+            .fold((0.0f32, 0), |best, x| if x.0 > best.0 { x } else { best });
+        if brightest as f64 * scale as f64 > MAX_RADIANCE as f64 {
+            return Err(self.err(
+                "environment.file",
+                format!(
+                    "image '{}': texel ({}, {}) = {brightest:e} times scale {scale:e} exceeds the largest radiance \
+                     plexus accepts, {MAX_RADIANCE:e}",
+                    path.display(),
+                    at % image.width,
+                    at / image.width
                 ),
             ));
         }
@@ -672,6 +733,14 @@ impl Builder<'_> {
 pub const MIN_EXTENT: f32 = 1e-9;
 /// The largest scene extent and coordinate plexus renders correctly; see `Builder::check_scale`.
 pub const MAX_EXTENT: f32 = 1e12;
+
+/// The largest radiance component (after `scale`) an emitter or environment texel may have. The
+/// integrators multiply radiance by path throughputs (BSDF/pdf ratios, and G·A/pdf factors of
+/// sampled light points: A/h² reaches 1e14 for a point 1e-7 of the scene's extent from a light's
+/// plane) before the film sums it in f64 and writes the image in f32 (at most 3.4e38): 1e20 leaves
+/// those factors 18 decades of headroom. Environment texels of 3e38 (which once rendered black
+/// or wrote Inf pixels) are far beyond it.
+pub const MAX_RADIANCE: f32 = 1e20;
 
 /// Roughness (GGX alpha) when a conductor or plastic gives none.
 pub const DEFAULT_ROUGHNESS: f32 = 0.1;

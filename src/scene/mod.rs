@@ -16,7 +16,7 @@ pub use error::SceneError;
 pub use info::{material_kind, scene_info, ImageEnvironmentFeature, MemoryEstimate, SceneFeatures, SceneInfo};
 pub use load::{
     load_scene, load_scene_str, load_scene_str_with_meshes, LoadedScene, MeshShape, RenderDesc, DEFAULT_IOR,
-    DEFAULT_ROUGHNESS, MAX_EXTENT, MIN_EXTENT,
+    DEFAULT_ROUGHNESS, MAX_EXTENT, MAX_RADIANCE, MIN_EXTENT,
 };
 
 use std::path::PathBuf;

@@ -502,7 +502,12 @@ impl Mlt {
         let w = w / state.target;
         let layer_height = film.height / self.depth_count();
         for sp in &state.splats {
-            film.splat_in_layer(sp.raster, d, layer_height, sp.value * w);
+            // A target near the smallest f32 can make the expected-value weight overflow: no
+            // non-finite value may reach the film (the splat's own value was checked when made).
+            let value = sp.value * w;
+            if is_finite(value) {
+                film.splat_in_layer(sp.raster, d, layer_height, value);
+            }
         }
     }
 
