@@ -11,6 +11,7 @@ pub mod bench;
 pub mod camera;
 pub mod film;
 pub mod geometry;
+pub mod input_file;
 pub mod integrator;
 pub mod light;
 pub mod material;

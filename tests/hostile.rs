@@ -185,3 +185,144 @@ fn previews_leave_no_temporary_file() {
         assert_eq!(left, ["o.exr", "o.json", "o.png", "s.toml"], "run {run}");
     }
 }
+
+/// A scene of the tiny floor and lamp plus `extra` shapes, written to `dir/s.toml`.
+fn scene_with(dir: &Path, extra: &str) -> String {
+    write(dir, "s.toml", &tiny_scene("[8, 6]", extra))
+}
+
+/// A mesh path that is a device. Old behaviour (main at 94429d5): `/dev/zero` as an OBJ or a PLY
+/// was still reading (and allocating) after 10 s; the issue saw the OBJ abort on allocation.
+#[test]
+fn a_mesh_that_is_not_a_regular_file_is_refused() {
+    let tmp = temp_dir("dev-zero");
+    let dir = tmp.path();
+    for kind in ["obj", "ply"] {
+        let extra = format!("[[shapes]]\ntype = \"{kind}\"\nfile = \"/dev/zero\"\nmaterial = \"floor\"\n");
+        let scene = scene_with(dir, &extra);
+        refused(
+            dir,
+            &["render", &scene, "--spp", "1", "--out", "o.exr"],
+            &["shapes[2].file", "/dev/zero", "not a regular file"],
+            &["s.toml"],
+        );
+    }
+    let extra = "[[shapes]]\ntype = \"obj\"\nfile = \".\"\nmaterial = \"floor\"\n";
+    let scene = scene_with(dir, extra);
+    refused(dir, &["render", &scene, "--spp", "1", "--out", "o.exr"], &["shapes[2].file", "a directory"], &["s.toml"]);
+}
+
+/// PLY headers whose counts the file cannot hold, ASCII and binary, are one line naming the count.
+/// This passes on the old code too (94429d5: ply-rs reads element by element and failed cleanly,
+/// "line 14: cannot read ''" and "failed to fill whole buffer"); it keeps the bound by the file's
+/// size from regressing, and the binary message now names the count.
+#[test]
+fn a_ply_header_declaring_more_than_the_file_holds_is_refused() {
+    let tmp = temp_dir("ply-count");
+    let dir = tmp.path();
+    for (format, count) in [("ascii", "4000000000"), ("binary_little_endian", "4294967295")] {
+        let ply = format!(
+            "ply\nformat {format} 1.0\nelement vertex {count}\nproperty float x\nproperty float y\nproperty float z\n\
+             element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+        );
+        write(dir, "big.ply", &format!("{ply}0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"));
+        let extra = "[[shapes]]\ntype = \"ply\"\nfile = \"big.ply\"\nmaterial = \"floor\"\n";
+        let scene = scene_with(dir, extra);
+        refused(
+            dir,
+            &["render", &scene, "--spp", "1", "--out", "o.exr"],
+            &["shapes[2].file", "big.ply", count, "'vertex'", "bytes follow the header"],
+            &["s.toml", "big.ply"],
+        );
+    }
+}
+
+/// Writes a `w`×`h` RGB float EXR whose every texel is `value`.
+fn write_exr(path: &Path, w: usize, h: usize, value: f32) {
+    exr::prelude::write_rgb_file(path, w, h, |_, _| (value, value, value)).expect("write exr");
+}
+
+/// Radiance × scale beyond 1e20 (`MAX_RADIANCE`). Old behaviour (94429d5): environment texels of
+/// 3e38 (finite, so allowed) rendered with exit 0 and an all-Inf image (mean "inf" in the JSON);
+/// emission 1e30 × scale 1e10 overflowed to Inf and was accepted too.
+#[test]
+fn radiance_beyond_the_bound_is_refused_naming_the_key_or_file() {
+    let tmp = temp_dir("radiance");
+    let dir = tmp.path();
+    let args = |scene: &str| vec!["render".to_string(), scene.to_string(), "--spp".into(), "1".into(), "--out".into(), "o.exr".into()];
+    let run = |scene: &str, needles: &[&str], kept: &[&str]| {
+        let a = args(scene);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        refused(dir, &a, needles, kept);
+    };
+    let text = tiny_scene("[8, 6]", "").replace("radiance = [4.0, 4.0, 4.0]", "radiance = [1e30, 1, 1], scale = 1e10");
+    run(&write(dir, "s.toml", &text), &["shapes[1].emission", "1e20"], &["s.toml"]);
+    let text = tiny_scene("[8, 6]", "[environment]\ntype = \"constant\"\nradiance = [3e38, 3e38, 3e38]\n");
+    run(&write(dir, "s.toml", &text), &["environment", "3e38", "1e20"], &["s.toml"]);
+    write_exr(&dir.join("sky.exr"), 4, 2, 3e38);
+    let text = tiny_scene("[8, 6]", "[environment]\ntype = \"image\"\nfile = \"sky.exr\"\n");
+    run(&write(dir, "s.toml", &text), &["environment.file", "sky.exr", "3e38", "1e20"], &["s.toml", "sky.exr"]);
+    // Within the bound, texel × scale: 1e10 × 1e10 is accepted, 1e10 × 1e11 not.
+    write_exr(&dir.join("sky.exr"), 4, 2, 1e10);
+    let text = tiny_scene("[8, 6]", "[environment]\ntype = \"image\"\nfile = \"sky.exr\"\nscale = 1e11\n");
+    run(&write(dir, "s.toml", &text), &["environment.file", "scale 1e11"], &["s.toml", "sky.exr"]);
+    let ok = plexus(&["info", &write(dir, "s.toml", &text.replace("1e11", "1e10"))], dir);
+    assert_eq!(ok.status.code(), Some(0), "{}", stderr(&ok));
+}
+
+/// Environment maps that are not EXR files, truncated ones, and ones whose header declares far
+/// more pixels than the file holds: one line each, naming the key and the file.
+#[test]
+fn corrupt_environment_maps_are_one_line_errors() {
+    let tmp = temp_dir("exr");
+    let dir = tmp.path();
+    write_exr(&dir.join("good.exr"), 16, 8, 0.5);
+    let good = std::fs::read(dir.join("good.exr")).expect("read exr");
+    let text = tiny_scene("[8, 6]", "[environment]\ntype = \"image\"\nfile = \"sky.exr\"\n");
+    let scene = write(dir, "s.toml", &text);
+    let mut cases: Vec<(&str, Vec<u8>)> =
+        vec![("empty", Vec::new()), ("text", b"not an exr\n".to_vec()), ("half", good[..good.len() / 2].to_vec())];
+    // The data window's max x (a 32-bit int after "dataWindow\0box2i\0" + size) made huge.
+    let mut lying = good.clone();
+    let at = lying.windows(11).position(|w| w == b"dataWindow\0").expect("dataWindow attribute") + 11 + 6 + 4;
+    lying[at + 8..at + 12].copy_from_slice(&0x3fff_ffffi32.to_le_bytes());
+    cases.push(("lying", lying));
+    for (what, bytes) in cases {
+        std::fs::write(dir.join("sky.exr"), bytes).expect("write");
+        let o = plexus(&["render", &scene, "--spp", "1", "--out", "o.exr"], dir);
+        assert_refused(&o, &["environment.file", "sky.exr"]);
+        assert!(!dir.join("o.exr").exists(), "{what}");
+    }
+    let text = tiny_scene("[8, 6]", "[environment]\ntype = \"image\"\nfile = \"/dev/zero\"\n");
+    let scene = write(dir, "s.toml", &text);
+    assert_refused(&plexus(&["render", &scene, "--spp", "1", "--out", "o.exr"], dir), &["not a regular file"]);
+}
+
+/// A light facing away from everything the camera sees: every integrator renders black with
+/// exit 0 and says so on stderr in one `warning: ` line. Old behaviour (94429d5): no warning
+/// for pt, bdpt and light; the MLT integrators' warning only in the JSON.
+#[test]
+fn a_black_render_says_so_on_stderr_for_every_integrator() {
+    let tmp = temp_dir("black");
+    let dir = tmp.path();
+    let text = tiny_scene("[8, 6]", "").replace(
+        "rotate = { axis = [1, 0, 0], angle = 90 }, translate = [0.0, 2.0, 0.0]",
+        "rotate = { axis = [1, 0, 0], angle = -90 }, translate = [0.0, 2.0, 0.0]",
+    );
+    let scene = write(dir, "s.toml", &text);
+    for integrator in plexus::integrator::INTEGRATOR_NAMES {
+        let mut args = vec!["render", &scene, "--integrator", integrator, "--spp", "1", "--out", "o.exr"];
+        if integrator.ends_with("mlt") {
+            args.extend(["--set", "bootstrap=2000", "--set", "chains=4"]);
+        }
+        let o = plexus(&args, dir);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(0), "{integrator}: {err}");
+        let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("warning: ")).collect();
+        assert_eq!(warnings.len(), 1, "{integrator}: {err}");
+        assert!(warnings[0].contains("black"), "{integrator}: {err}");
+    }
+    // The lit scene renders without a warning.
+    let o = plexus(&["render", &write(dir, "lit.toml", &tiny_scene("[8, 6]", "")), "--spp", "1", "--out", "o.exr"], dir);
+    assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+}

@@ -22,8 +22,36 @@ pub enum ExrReadError {
         "EXR file '{path}': channel '{channel}' is subsampled ({x}x{y}); only full-resolution channels are supported"
     )]
     Subsampled { path: PathBuf, channel: String, x: usize, y: usize },
+    #[error("cannot read EXR file '{path}': {reason}")]
+    Unreadable { path: PathBuf, reason: String },
+    #[error(
+        "EXR file '{path}' declares a {width}x{height} image of {bytes} bytes, more than its {size} bytes can hold \
+         (truncated or corrupt)"
+    )]
+    Truncated { path: PathBuf, width: u64, height: u64, bytes: u64, size: u64 },
     #[error("EXR file '{path}' has an empty data window ({width}x{height})")]
     Empty { path: PathBuf, width: usize, height: usize },
+}
+
+/// The most uncompressed bytes one byte of an EXR file can stand for: deflate (ZIP, ZIPS) expands
+/// at most 1032:1, and RLE, PIZ, PXR24 and the B44 formats less.
+const MAX_EXPANSION: u64 = 1032;
+
+/// Reads only the headers and refuses a file whose layers declare more pixel bytes than its size
+/// could hold even at the best compression: the `exr` crate would allocate by the header (a
+/// 16-byte file declaring a 2^31-pixel window) before finding the data missing.
+fn check_declared_size(path: &Path, size: u64) -> Result<(), ExrReadError> {
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|source| ExrReadError::Exr { path: path.to_path_buf(), source })?;
+    for header in meta.headers.iter() {
+        let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
+        let bytes = w.saturating_mul(h).saturating_mul(header.channels.bytes_per_pixel as u64);
+        let expansion = if header.compression == exr::compression::Compression::Uncompressed { 1 } else { MAX_EXPANSION };
+        if bytes > size.saturating_mul(expansion) {
+            return Err(ExrReadError::Truncated { path: path.to_path_buf(), width: w, height: h, bytes, size });
+        }
+    }
+    Ok(())
 }
 
 /// Finds the channel called `name`, or failing that one whose name ends in `.name` (a layer
@@ -38,6 +66,9 @@ fn find<'a>(channels: &'a [AnyChannel<FlatSamples>], name: &str) -> Option<&'a A
 
 /// Reads `path` as a linear RGB image (row 0 at the top).
 pub fn read_exr(path: &Path) -> Result<Image, ExrReadError> {
+    let (_, size) = crate::input_file::open_regular(path)
+        .map_err(|reason| ExrReadError::Unreadable { path: path.to_path_buf(), reason })?;
+    check_declared_size(path, size)?;
     let image = exr::prelude::read_first_flat_layer_from_file(path)
         .map_err(|source| ExrReadError::Exr { path: path.to_path_buf(), source })?;
     let layer = image.layer_data;

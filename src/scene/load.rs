@@ -235,8 +235,8 @@ impl Builder<'_> {
         Err(self.err(
             key,
             format!(
-                "radiance × scale = {} exceeds the largest radiance plexus accepts, {MAX_RADIANCE:e}",
-                fmt3(radiance.to_array())
+                "radiance × scale = [{:e}, {:e}, {:e}] exceeds the largest radiance plexus accepts, {MAX_RADIANCE:e}",
+                radiance.x, radiance.y, radiance.z
             ),
         ))
     }
