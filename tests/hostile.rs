@@ -242,9 +242,10 @@ fn write_exr(path: &Path, w: usize, h: usize, value: f32) {
     exr::prelude::write_rgb_file(path, w, h, |_, _| (value, value, value)).expect("write exr");
 }
 
-/// Radiance × scale beyond 1e20 (`MAX_RADIANCE`). Old behaviour (94429d5): environment texels of
-/// 3e38 (finite, so allowed) rendered with exit 0 and an all-Inf image (mean "inf" in the JSON);
-/// emission 1e30 × scale 1e10 overflowed to Inf and was accepted too.
+/// Radiance × scale beyond 1e20 (`MAX_RADIANCE`). Old behaviour (94429d5, 8×6 at 4 spp): emission
+/// 1e30 × scale 1e10 rendered black with exit 0 ("94 non-finite contributions dropped"); a
+/// constant environment of 3e38 rendered a mean of 2.27e38, one step from Inf pixels; the issue saw
+/// image texels of 3e38 render black or write Inf.
 #[test]
 fn radiance_beyond_the_bound_is_refused_naming_the_key_or_file() {
     let tmp = temp_dir("radiance");
