@@ -84,13 +84,18 @@ def _run(batch, args: argparse.Namespace, plexus: Path):
 
     from .runner import run_batch
 
-    progress = (lambda _msg: None) if args.quiet else None
+    def run(client: Client, dashboard: bool):
+        if dashboard and not args.quiet:
+            print(f"dashboard: {client.dashboard_link}", file=sys.stderr)
+        progress = (lambda _msg: None) if args.quiet else None
+        return run_batch(batch, client, plexus, retries=args.retries, progress=progress)
+
     if args.scheduler_file is not None:
         with Client(scheduler_file=str(args.scheduler_file)) as client:
-            return run_batch(batch, client, plexus, retries=args.retries, progress=progress)
+            return run(client, True)
     if args.scheduler != "local":
         with Client(args.scheduler) as client:
-            return run_batch(batch, client, plexus, retries=args.retries, progress=progress)
+            return run(client, True)
     workers = args.workers or os.cpu_count() or 1
     # One thread per worker: a shard's render has its own threads (the job's `threads`), and one
     # task per worker at a time keeps a worker's death to one shard.
@@ -98,7 +103,9 @@ def _run(batch, args: argparse.Namespace, plexus: Path):
         n_workers=workers,
         threads_per_worker=1,
         processes=True,
-        dashboard_address=args.dashboard,
+        # Without --dashboard, the scheduler's HTTP server (dashboard or not) takes a free port, so
+        # that two local batches do not contend for 8787.
+        dashboard_address=args.dashboard or ":0",
     ) as cluster, Client(cluster) as client:
         client.wait_for_workers(workers)
-        return run_batch(batch, client, plexus, retries=args.retries, progress=progress)
+        return run(client, args.dashboard is not None)

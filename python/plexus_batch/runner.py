@@ -131,10 +131,7 @@ def run_batch(
             what[f.key] = (p.job.name, s.index)
             futures[p.job.name].append(f)
             ac.add(f)
-    progress(
-        f"submitted {sum(p.job.shards for p in plans)} shards of {len(plans)} jobs to {workers} workers"
-        + (f" (dashboard {client.dashboard_link})" if _has_dashboard(client) else "")
-    )
+    progress(f"submitted {sum(p.job.shards for p in plans)} shards of {len(plans)} jobs to {workers} workers")
 
     def fail(name: str, message: str) -> None:
         r = reports[name]
@@ -212,11 +209,4 @@ def _starts(client: Client, run_id: str) -> dict[str, int]:
 def _exception_line(e: BaseException | None) -> str:
     text = str(e).strip().splitlines()
     return f"{type(e).__name__}: {text[0] if text else ''}".rstrip(": ")
-
-
-def _has_dashboard(client: Client) -> bool:
-    try:
-        return bool(client.scheduler_info().get("services", {}).get("dashboard"))
-    except Exception:  # noqa: BLE001 - only decides whether to print a link
-        return False
 
