@@ -29,6 +29,7 @@ must see the same paths).
 from __future__ import annotations
 
 import math
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -205,7 +206,8 @@ def _path(value: Any, base: Path, where: str) -> Path:
     if not isinstance(value, str) or not value:
         raise BatchError(f"{where}: expected a path string, got {_show(value)}")
     p = Path(value).expanduser()
-    return p if p.is_absolute() else base / p
+    # normpath: "../../scenes/x.toml" reads better in commands and errors than base/../../...
+    return Path(os.path.normpath(p if p.is_absolute() else base / p))
 
 
 def _int(value: Any, where: str, lo: int, hi: int) -> int:
