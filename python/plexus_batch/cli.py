@@ -70,7 +70,11 @@ def main(argv: list[str] | None = None) -> int:
         return 0
 
     summary = args.summary or batch.path.with_name(f"{batch.path.stem}.summary.json")
-    report = _run(batch, args, plexus)
+    try:
+        report = _run(batch, args, plexus)
+    except KeyboardInterrupt:
+        print("error: interrupted; shard files are left in place", file=sys.stderr)
+        return 130
     summary.parent.mkdir(parents=True, exist_ok=True)
     summary.write_text(report.to_json(), encoding="utf-8")
     print(report.table())
