@@ -3,10 +3,10 @@
 
 use std::collections::BTreeMap;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Proposals and acceptances of one mutation strategy (or one path length, or one technique).
-#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct AcceptanceCount {
     pub proposed: u64,
     pub accepted: f64,
@@ -27,7 +27,7 @@ impl AcceptanceCount {
 }
 
 /// Counters one worker accumulates without synchronisation; merged at the end of a render.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Counters {
     /// Closest-hit queries.
     pub rays: u64,

@@ -45,7 +45,7 @@ impl Image {
 }
 
 /// One worker's accumulation buffer, in f64 so that long renders do not lose small contributions.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Accumulator {
     pub width: usize,
     pub height: usize,
@@ -55,6 +55,11 @@ pub struct Accumulator {
 impl Accumulator {
     pub fn new(width: usize, height: usize) -> Accumulator {
         Accumulator { width, height, sums: vec![[0.0; 3]; width * height] }
+    }
+    /// A film holding `sums` (row-major, `width`×`height` of them): a saved state's film.
+    pub fn from_sums(width: usize, height: usize, sums: Vec<[f64; 3]>) -> Accumulator {
+        assert_eq!(sums.len(), width * height, "a {width}×{height} film");
+        Accumulator { width, height, sums }
     }
     /// Adds `value` to pixel (x, y). Non-finite values must be filtered by the caller (and counted).
     #[inline]
@@ -88,6 +93,10 @@ impl Accumulator {
         for &(index, value) in &buffer.splats {
             self.add_at(index as usize, value);
         }
+    }
+    /// The sums, taken out of the film (a state file's film).
+    pub fn into_sums(self) -> Vec<[f64; 3]> {
+        self.sums
     }
     /// The unnormalised sums, row-major: what a checkpoint or a merge of renders works on.
     pub fn sums(&self) -> &[[f64; 3]] {

@@ -1,7 +1,7 @@
 use glam::Vec3;
 
 /// An orthonormal basis; `n` is the local +z axis. BSDFs work in this local frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Frame {
     pub s: Vec3,
     pub t: Vec3,

@@ -60,6 +60,7 @@
 //!   its own b_d / iterations only at output, so its image too depends on the seed and the chain
 //!   count only, not on the threads.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -67,6 +68,7 @@ use rayon::{ThreadPool, ThreadPoolBuilder};
 
 use super::{Budget, Progress, RenderError, RenderJob, RenderOutput};
 use crate::film::{Accumulator, Image, SplatBuffer};
+use crate::state::{RenderState, Session, StateError};
 use crate::sampling::Rng;
 use crate::stats::Counters;
 
@@ -188,6 +190,77 @@ pub struct PassBoundary<'a, U, S> {
 /// Builds a preview image from a pass boundary (see `Driver::run`).
 pub type Snapshot<'a, U, S> = dyn Fn(&PassBoundary<'_, U, S>) -> Image + 'a;
 
+/// Receives a pass boundary to save as a checkpoint (see [`RunControl::checkpoint_every`]).
+pub type CheckpointHook<'a, U, S> = dyn Fn(&PassBoundary<'_, U, S>) + 'a;
+
+/// What can end a run before its budget, and how often it offers checkpoints: both only at pass
+/// boundaries, so what is saved is a state the render model can resume from (issue 19).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RunControl<'a> {
+    /// Set (by a signal handler) to stop at the next pass boundary.
+    pub stop: Option<&'a AtomicBool>,
+    /// Stop when the schedule reaches this pass (`passes_done` ≥ it): a deterministic stand-in for
+    /// a signal, for tests of interrupt and resume.
+    pub stop_at_pass: Option<u64>,
+    /// Offer a checkpoint at a pass boundary once at least this long has passed since the run
+    /// started or the last one.
+    pub checkpoint_every: Option<Duration>,
+}
+
+impl RunControl<'_> {
+    /// Whether this control never stops a run nor checkpoints it.
+    pub fn is_inert(&self) -> bool {
+        self.stop.is_none() && self.stop_at_pass.is_none() && self.checkpoint_every.is_none()
+    }
+
+    fn stop_requested(&self, passes_done: u64) -> bool {
+        self.stop.is_some_and(|f| f.load(Ordering::SeqCst)) || self.stop_at_pass.is_some_and(|n| passes_done >= n)
+    }
+}
+
+/// Which passes of the schedule a run renders: pass p when p mod `count` = `index` (issue 21:
+/// the pass shards of pt, BDPT and light tracing); every pass by default.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PassSet {
+    pub index: u64,
+    pub count: u64,
+}
+
+impl PassSet {
+    pub const ALL: PassSet = PassSet { index: 0, count: 1 };
+
+    pub fn contains(&self, pass: u64) -> bool {
+        pass % self.count.max(1) == self.index
+    }
+
+    /// How many of passes `0..n` are in the set.
+    pub fn count_below(&self, n: u64) -> u64 {
+        let count = self.count.max(1);
+        n / count + u64::from(n % count > self.index)
+    }
+}
+
+/// Where a run starts: the schedule position and what the passes before left (a resumed render),
+/// or the beginning ([`RunStart::fresh`]).
+pub struct RunStart<U, S> {
+    pub units: Vec<U>,
+    /// The first pass of the schedule this run may render.
+    pub next_pass: u64,
+    /// The film's sums so far; a zero film when `None`.
+    pub film: Option<Accumulator>,
+    /// The counters and per-slot state the earlier runs' slots summed to: slot 0 starts from them
+    /// (the end-of-run merge in slot order then adds them first), the others from `init_slot`.
+    pub saved_slot: Option<(Counters, S)>,
+    pub passes: PassSet,
+}
+
+impl<U, S> RunStart<U, S> {
+    /// A run from pass 0 with a zero film, every pass.
+    pub fn fresh(units: Vec<U>) -> RunStart<U, S> {
+        RunStart { units, next_pass: 0, film: None, saved_slot: None, passes: PassSet::ALL }
+    }
+}
+
 /// What a run produced.
 pub struct RunOutput<U, S> {
     /// The film: unnormalised sums, every unit's contributions applied in unit order.
@@ -198,8 +271,12 @@ pub struct RunOutput<U, S> {
     pub units: Vec<U>,
     /// Per-slot states, in slot order.
     pub slot_states: Vec<S>,
-    /// Passes completed.
+    /// The schedule position reached: every pass below it that the run's `PassSet` holds is done.
     pub passes: u64,
+    /// Passes this run rendered (fewer than `passes` for a resumed or sharded run).
+    pub passes_run: u64,
+    /// Whether the run ended early because its `RunControl` asked it to stop.
+    pub stopped: bool,
     /// Clock time the run took.
     pub elapsed: Duration,
 }
@@ -258,7 +335,7 @@ impl Driver {
     /// determinism do not depend on them.
     pub fn run<U, S, K>(
         &self,
-        mut units: Vec<U>,
+        units: Vec<U>,
         passes: Passes,
         progress: &dyn Progress,
         init_slot: impl Fn(usize) -> S,
@@ -270,6 +347,32 @@ impl Driver {
         S: Send + Sync,
         K: Fn(&WorkItem, &mut U, &mut Slot<S>) -> u64 + Sync,
     {
+        self.run_from(RunStart::fresh(units), passes, progress, init_slot, kernel, snapshot, RunControl::default(), None)
+    }
+
+    /// [`Driver::run`] from `start` (a resumed render, or a shard's set of passes), under
+    /// `control`: before each pass the run ends if `control` asks it to stop, and after a pass at
+    /// most every `control.checkpoint_every` the boundary goes to `checkpoint`. A budget of
+    /// `Passes::Count(n)` means schedule positions below n, so a resumed run ends where the
+    /// uninterrupted one would have; a time budget counts from this run's start.
+    #[allow(clippy::too_many_arguments)]
+    pub fn run_from<U, S, K>(
+        &self,
+        start: RunStart<U, S>,
+        passes: Passes,
+        progress: &dyn Progress,
+        init_slot: impl Fn(usize) -> S,
+        kernel: K,
+        snapshot: Option<&Snapshot<'_, U, S>>,
+        control: RunControl<'_>,
+        checkpoint: Option<&CheckpointHook<'_, U, S>>,
+    ) -> RunOutput<U, S>
+    where
+        U: Send,
+        S: Send + Sync,
+        K: Fn(&WorkItem, &mut U, &mut Slot<S>) -> u64 + Sync,
+    {
+        let RunStart { mut units, next_pass, film: start_film, saved_slot, passes: pass_set } = start;
         let clock = self.clock.as_ref();
         let start = clock.now();
         let preview_every = progress
@@ -277,10 +380,12 @@ impl Driver {
             .filter(|s| s.is_finite() && *s > 0.0)
             .and_then(|s| Duration::try_from_secs_f64(s).ok());
         let mut last_preview = start;
+        let mut last_checkpoint = start;
         let unit_count = units.len();
         let threads = self.threads;
         let (width, height) = (self.width, self.height);
-        let mut film = Accumulator::new(width, height);
+        let mut film = start_film.unwrap_or_else(|| Accumulator::new(width, height));
+        debug_assert_eq!((film.width, film.height), (width, height));
         let mut buffers: Vec<SplatBuffer> = (0..unit_count).map(|_| SplatBuffer::new(width, height)).collect();
         let mut slots: Vec<Slot<S>> = (0..threads)
             .map(|index| Slot {
@@ -290,6 +395,10 @@ impl Driver {
                 state: init_slot(index),
             })
             .collect();
+        if let (Some((counters, state)), Some(first)) = (saved_slot, slots.first_mut()) {
+            first.counters = counters;
+            first.state = state;
+        }
 
         let seed = self.seed;
         // The clock reading by which passes must end; `None` for pass counts, and for a budget
@@ -298,20 +407,30 @@ impl Driver {
             Passes::Deadline(at) => Some(at),
             _ => None,
         };
-        let mut pass = 0u64;
+        let mut pass = next_pass;
+        let mut passes_run = 0u64;
+        let mut stopped = false;
         let mut last_pass = Duration::ZERO;
         loop {
+            while !pass_set.contains(pass) {
+                pass += 1;
+            }
             let go = unit_count > 0
                 && match passes {
                     Passes::Count(n) => pass < n,
                     Passes::Seconds(_) | Passes::Deadline(_) => {
                         let now = clock.now();
-                        let mean = now.saturating_sub(start).div_f64(pass.max(1) as f64);
+                        let mean = now.saturating_sub(start).div_f64(passes_run.max(1) as f64);
                         let predicted = last_pass.max(mean);
-                        pass == 0 || deadline.is_none_or(|at| now.checked_add(predicted).is_some_and(|end| end <= at))
+                        passes_run == 0
+                            || deadline.is_none_or(|at| now.checked_add(predicted).is_some_and(|end| end <= at))
                     }
                 };
             if !go {
+                break;
+            }
+            if control.stop_requested(pass) {
+                stopped = true;
                 break;
             }
             let pass_start = clock.now();
@@ -343,18 +462,26 @@ impl Driver {
             let now = clock.now();
             last_pass = now.saturating_sub(pass_start);
             pass += 1;
-            if let (Some(every), Some(snapshot)) = (preview_every, snapshot) {
-                if now.saturating_sub(last_preview) >= every {
-                    let boundary = PassBoundary {
-                        passes_done: pass,
-                        film: &film,
-                        units: &units,
-                        slots: &slots,
-                        elapsed: now.saturating_sub(start),
-                        last_pass,
-                    };
+            passes_run += 1;
+            let preview_due = preview_every.filter(|every| now.saturating_sub(last_preview) >= *every).and(snapshot);
+            let checkpoint_due =
+                control.checkpoint_every.filter(|every| now.saturating_sub(last_checkpoint) >= *every).and(checkpoint);
+            if preview_due.is_some() || checkpoint_due.is_some() {
+                let boundary = PassBoundary {
+                    passes_done: pass,
+                    film: &film,
+                    units: &units,
+                    slots: &slots,
+                    elapsed: now.saturating_sub(start),
+                    last_pass,
+                };
+                if let Some(snapshot) = preview_due {
                     progress.preview(&snapshot(&boundary));
                     last_preview = now;
+                }
+                if let Some(checkpoint) = checkpoint_due {
+                    checkpoint(&boundary);
+                    last_checkpoint = clock.now();
                 }
             }
         }
@@ -365,7 +492,16 @@ impl Driver {
             counters.merge(&slot.counters);
             slot_states.push(slot.state);
         }
-        RunOutput { film, counters, units, slot_states, passes: pass, elapsed: clock.now().saturating_sub(start) }
+        RunOutput {
+            film,
+            counters,
+            units,
+            slot_states,
+            passes: pass,
+            passes_run,
+            stopped,
+            elapsed: clock.now().saturating_sub(start),
+        }
     }
 }
 
@@ -389,8 +525,9 @@ impl Tile {
 }
 
 /// The schedule of an image-space integrator (one sample = one camera path per pixel): tiles, and
-/// how many samples per pixel each pass takes. Depends only on the resolution and budget, so it is
-/// part of what makes a render reproducible.
+/// how many samples per pixel each pass takes. Depends only on the resolution and budget (and, for
+/// a resumed render, on what the saved passes took), so it is part of what makes a render
+/// reproducible.
 #[derive(Clone, Debug)]
 pub struct ImagePlan {
     pub tiles: Vec<Tile>,
@@ -399,6 +536,10 @@ pub struct ImagePlan {
     pub passes: Passes,
     /// Total samples per pixel, when known in advance (sample budgets).
     pub total_spp: Option<u64>,
+    /// A resumed render: passes done before, and the samples per pixel they took. The passes from
+    /// `base_passes` on take `spp_per_pass` each (the last of a sample budget fewer).
+    pub base_passes: u64,
+    pub base_spp: u64,
 }
 
 impl ImagePlan {
@@ -408,46 +549,116 @@ impl ImagePlan {
     /// budget every pass takes one sample per pixel, so the image stays the mean of equally many
     /// samples at every pixel and the budget is overrun by less than one such pass.
     pub fn new(width: u32, height: u32, budget: Budget) -> ImagePlan {
+        let pixels = (width as u64 * height as u64).max(1);
+        let per_pass = match budget {
+            Budget::SamplesPerPixel(n) => MIN_SAMPLES_PER_PASS.div_ceil(pixels).max(1).min(n.max(1)),
+            Budget::Seconds(_) => 1,
+        };
+        ImagePlan::resumed(width, height, budget, per_pass, 0, 0)
+    }
+
+    /// The plan that continues a render after `base_passes` passes of `spp_per_pass` samples per
+    /// pixel (`base_spp` in all) with `budget`: for a sample budget the render's new total, for
+    /// a time budget the time this run may take.
+    pub fn resumed(width: u32, height: u32, budget: Budget, spp_per_pass: u64, base_passes: u64, base_spp: u64) -> Self {
         let mut tiles = Vec::new();
         for y0 in (0..height).step_by(TILE_SIZE as usize) {
             for x0 in (0..width).step_by(TILE_SIZE as usize) {
                 tiles.push(Tile { x0, y0, x1: (x0 + TILE_SIZE).min(width), y1: (y0 + TILE_SIZE).min(height) });
             }
         }
-        let pixels = (width as u64 * height as u64).max(1);
-        let per_pass = MIN_SAMPLES_PER_PASS.div_ceil(pixels).max(1);
-        match budget {
+        let spp_per_pass = spp_per_pass.max(1);
+        let (passes, total_spp) = match budget {
             Budget::SamplesPerPixel(n) => {
-                let spp_per_pass = per_pass.min(n.max(1));
-                ImagePlan { tiles, spp_per_pass, passes: Passes::Count(n.div_ceil(spp_per_pass)), total_spp: Some(n) }
+                (Passes::Count(base_passes + n.saturating_sub(base_spp).div_ceil(spp_per_pass)), Some(n.max(base_spp)))
             }
-            Budget::Seconds(s) => ImagePlan { tiles, spp_per_pass: 1, passes: Passes::Seconds(s), total_spp: None },
-        }
+            Budget::Seconds(s) => (Passes::Seconds(s), None),
+        };
+        ImagePlan { tiles, spp_per_pass, passes, total_spp, base_passes, base_spp }
     }
 
-    /// Samples per pixel that pass `pass` takes (the last pass of a sample budget may take fewer).
+    /// Samples per pixel that pass `pass` (at or after `base_passes`) takes (the last pass of a
+    /// sample budget may take fewer).
     pub fn spp_in_pass(&self, pass: u64) -> u64 {
+        let before = self.base_spp + pass.saturating_sub(self.base_passes) * self.spp_per_pass;
         match self.total_spp {
-            Some(total) => self.spp_per_pass.min(total.saturating_sub(pass * self.spp_per_pass)),
+            Some(total) => self.spp_per_pass.min(total.saturating_sub(before)),
             None => self.spp_per_pass,
         }
     }
 
-    /// Samples per pixel after `passes` complete passes.
+    /// Samples per pixel after the passes below `passes` are done.
     pub fn spp_after(&self, passes: u64) -> u64 {
-        match self.total_spp {
-            Some(total) => (passes * self.spp_per_pass).min(total),
-            None => passes * self.spp_per_pass,
-        }
+        let run = passes.saturating_sub(self.base_passes) * self.spp_per_pass;
+        self.base_spp
+            + match self.total_spp {
+                Some(total) => run.min(total - self.base_spp),
+                None => run,
+            }
     }
 
-    /// The normalisation of a film after `passes` passes: 1 / samples per pixel (0 before any).
-    pub fn scale_after(&self, passes: u64) -> f64 {
-        match self.spp_after(passes) {
-            0 => 0.0,
-            spp => 1.0 / spp as f64,
+    /// Samples per pixel that the passes of `set` below `passes` took (a shard's share; the
+    /// whole render's for `PassSet::ALL`). Every pass but a sample budget's last is full.
+    pub fn spp_in_set(&self, set: PassSet, passes: u64) -> u64 {
+        if set == PassSet::ALL || passes <= self.base_passes {
+            return self.spp_after(passes);
         }
+        let last = passes - 1;
+        let full = set.count_below(last).saturating_sub(set.count_below(self.base_passes)) * self.spp_per_pass;
+        full + if set.contains(last) { self.spp_in_pass(last) } else { 0 }
     }
+}
+
+/// The integrator part of the state of a pt, BDPT or light tracing render (`crate::state`): the
+/// tiles carry nothing between passes, so what the render did is the schedule position (in the
+/// state), the pass size and the samples per pixel its film holds.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ImagePart {
+    pub spp_per_pass: u64,
+    pub spp_done: u64,
+}
+
+impl ImagePart {
+    /// Merges shards' parts: their samples per pixel add up.
+    pub fn merge(parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
+        let mut merged: Option<ImagePart> = None;
+        for bytes in parts {
+            let part: ImagePart = crate::state::decode(bytes)?;
+            match merged.as_mut() {
+                None => merged = Some(part),
+                Some(m) if m.spp_per_pass == part.spp_per_pass => m.spp_done += part.spp_done,
+                Some(_) => {
+                    return Err(StateError::Mismatch("the shards' passes take different samples per pixel".into()).into())
+                }
+            }
+        }
+        Ok(crate::state::encode(&merged.ok_or_else(|| StateError::Mismatch("no shard".into()))?)?)
+    }
+
+    /// The output of a state: the film over its samples per pixel, with the statistics a render
+    /// reports (`ImageRender::run`).
+    pub fn output_of_state(state: &RenderState) -> Result<RenderOutput, RenderError> {
+        let part: ImagePart = crate::state::decode(&state.part)?;
+        let film = state_film(state);
+        let scale = if part.spp_done > 0 { 1.0 / part.spp_done as f64 } else { 0.0 };
+        Ok(RenderOutput {
+            image: film.to_image(scale),
+            layers: Vec::new(),
+            counters: state.counters.clone(),
+            wall_time: Duration::try_from_secs_f64(state.wall_time_s).unwrap_or_default(),
+            extra_stats: serde_json::json!({
+                "spp": part.spp_done,
+                "passes": state.passes_done,
+                "spp_per_pass": part.spp_per_pass,
+                "tiles": state.unit_count,
+            }),
+        })
+    }
+}
+
+/// The film of a state, as an accumulator.
+pub fn state_film(state: &RenderState) -> Accumulator {
+    Accumulator::from_sums(state.film_width as usize, state.film_height as usize, state.film.clone())
 }
 
 /// What every image-space integrator (pt, BDPT, light tracing) does around its per-sample kernel:
@@ -460,6 +671,10 @@ pub struct ImageRender<'a> {
     progress: &'a dyn Progress,
     /// The clock's reading when the render began.
     started: Duration,
+    session: Session<'a>,
+    passes: PassSet,
+    /// Wall time of the runs a resumed render continues.
+    earlier_seconds: f64,
 }
 
 /// What [`ImageRender::run`] produced.
@@ -472,6 +687,8 @@ pub struct ImageRun {
     /// The normalisation applied to the film: 1 / samples per pixel (0 if no pass ran), for any
     /// further films an integrator keeps (BDPT's technique layers).
     pub scale: f64,
+    /// The state reached, when the render ran under a session (`ImageRender::with_session`).
+    pub state: Option<RenderState>,
 }
 
 impl<'a> ImageRender<'a> {
@@ -496,11 +713,75 @@ impl<'a> ImageRender<'a> {
             progress.set_total(spp * width as u64 * height as u64);
         }
         let driver = Driver::with_clock(job, width, height, clock)?;
-        Ok(ImageRender { driver, plan, progress, started })
+        Ok(ImageRender {
+            driver,
+            plan,
+            progress,
+            started,
+            session: Session::default(),
+            passes: PassSet::ALL,
+            earlier_seconds: 0.0,
+        })
+    }
+
+    /// Runs under `session` (`crate::state`): a resumed render continues the saved schedule from
+    /// its state (the job's budget is then the new total, or the time this run may take); a shard
+    /// renders passes p ≡ K (mod N) of the schedule.
+    pub fn with_session(mut self, session: Session<'a>) -> Result<Self, RenderError> {
+        let (width, height) = (self.driver.width as u32, self.driver.height as u32);
+        if let Some(state) = session.resume {
+            if (state.film_width, state.film_height) != (width, height) || state.unit_count != self.plan.tiles.len() as u64 {
+                return Err(StateError::Mismatch("the checkpoint's film does not match the scene's resolution".into()).into());
+            }
+            let part: ImagePart = crate::state::decode(&state.part)?;
+            let budget = match self.plan.total_spp {
+                Some(n) => Budget::SamplesPerPixel(n),
+                None => match self.plan.passes {
+                    Passes::Seconds(s) => Budget::Seconds(s),
+                    _ => Budget::Seconds(0.0),
+                },
+            };
+            self.plan = ImagePlan::resumed(width, height, budget, part.spp_per_pass, state.passes_done, part.spp_done);
+            self.earlier_seconds = state.wall_time_s;
+            if let Some(total) = self.plan.total_spp {
+                self.progress.set_total((total - part.spp_done) * width as u64 * height as u64);
+            }
+        }
+        if let Some(shard) = session.shard {
+            self.passes = PassSet { index: shard.index, count: shard.count };
+            if let Passes::Count(n) = self.plan.passes {
+                self.progress.set_total(self.plan.spp_in_set(self.passes, n) * width as u64 * height as u64);
+            }
+        }
+        self.session = session;
+        Ok(self)
     }
 
     pub fn plan(&self) -> &ImagePlan {
         &self.plan
+    }
+
+    /// The state at a pass boundary: the film, the slots' counters, the samples per pixel done.
+    fn state_at(&self, passes_done: u64, film: &Accumulator, counters: Counters, elapsed: Duration) -> RenderState {
+        let spp_done = self.plan.spp_in_set(self.passes, passes_done);
+        let part = ImagePart { spp_per_pass: self.plan.spp_per_pass, spp_done };
+        let complete = match self.plan.passes {
+            Passes::Count(n) => passes_done >= n,
+            _ => false,
+        };
+        RenderState {
+            passes_done,
+            unit_count: self.plan.tiles.len() as u64,
+            film_width: film.width as u32,
+            film_height: film.height as u32,
+            film: film.sums().to_vec(),
+            counters,
+            // An `ImagePart` is two integers: its encoding cannot fail.
+            part: crate::state::encode(&part).unwrap_or_default(),
+            complete,
+            interrupted: false,
+            wall_time_s: if self.session.shard.is_some() { 0.0 } else { self.earlier_seconds + elapsed.as_secs_f64() },
+        }
     }
 
     /// Renders: for every pass and tile, `sample(x, y, rng, slot)` once per sample of each of the
@@ -514,9 +795,34 @@ impl<'a> ImageRender<'a> {
         K: Fn(u32, u32, &mut Rng, &mut Slot<S>) + Sync,
     {
         let plan = &self.plan;
-        let preview = |at: &PassBoundary<'_, Tile, S>| at.film.to_image(plan.scale_after(at.passes_done));
-        let out = self.driver.run(
-            plan.tiles.clone(),
+        let set = self.passes;
+        let preview = |at: &PassBoundary<'_, Tile, S>| {
+            let spp = plan.spp_in_set(set, at.passes_done);
+            at.film.to_image(if spp > 0 { 1.0 / spp as f64 } else { 0.0 })
+        };
+        let merged_counters = |slots: &[Slot<S>]| {
+            let mut counters = Counters::default();
+            for slot in slots {
+                counters.merge(&slot.counters);
+            }
+            counters
+        };
+        let checkpoint = |at: &PassBoundary<'_, Tile, S>| {
+            if let Some(sink) = self.session.checkpoint {
+                let elapsed = self.driver.clock().now().saturating_sub(self.started);
+                sink(self.state_at(at.passes_done, at.film, merged_counters(at.slots), elapsed));
+            }
+        };
+        let resume = self.session.resume;
+        let start = RunStart {
+            units: plan.tiles.clone(),
+            next_pass: resume.map_or(0, |s| s.passes_done),
+            film: resume.map(state_film),
+            saved_slot: resume.map(|s| (s.counters.clone(), init_slot(0))),
+            passes: set,
+        };
+        let out = self.driver.run_from(
+            start,
             plan.passes.counted_from(self.started),
             self.progress,
             init_slot,
@@ -533,22 +839,33 @@ impl<'a> ImageRender<'a> {
                 samples
             },
             Some(&preview),
+            self.session.control,
+            self.session.checkpoint.is_some().then_some(&checkpoint as &CheckpointHook<'_, Tile, S>),
         );
-        let scale = plan.scale_after(out.passes);
+        let spp = plan.spp_in_set(set, out.passes);
+        let scale = if spp > 0 { 1.0 / spp as f64 } else { 0.0 };
+        let wall_time = self.driver.clock().now().saturating_sub(self.started);
+        let state = (resume.is_some() || self.session.shard.is_some() || self.session.checkpoint.is_some()
+            || !self.session.control.is_inert())
+        .then(|| {
+            let mut state = self.state_at(out.passes, &out.film, out.counters.clone(), wall_time);
+            state.interrupted = out.stopped;
+            state
+        });
         let output = RenderOutput {
             image: out.film.to_image(scale),
             layers: Vec::new(),
             counters: out.counters,
-            wall_time: self.driver.clock().now().saturating_sub(self.started),
+            wall_time: wall_time + Duration::try_from_secs_f64(self.earlier_seconds).unwrap_or_default(),
             extra_stats: serde_json::json!({
-                "spp": plan.spp_after(out.passes),
+                "spp": spp,
                 "passes": out.passes,
                 "spp_per_pass": plan.spp_per_pass,
                 "tiles": plan.tiles.len(),
                 "threads": self.driver.threads(),
             }),
         };
-        (ImageRun { output, film: out.film, scale }, out.slot_states)
+        (ImageRun { output, film: out.film, scale, state }, out.slot_states)
     }
 }
 

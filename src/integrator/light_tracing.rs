@@ -14,7 +14,8 @@ use serde::{Deserialize, Serialize};
 
 use super::bdpt::connect::connect_to_camera;
 use super::bdpt::{generate_light_subpath, BdptContext, MisHeuristic, Vertex};
-use super::driver::{ImageRender, ImageRun};
+use super::driver::{ImagePart, ImageRender, ImageRun};
+use crate::state::{RenderState, Session, SessionOutput};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
@@ -68,13 +69,44 @@ impl Integrator for LightTracer {
     fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
         self.render_run(scene, job, progress).map(|run| run.output)
     }
+
+    fn render_session(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+    ) -> Result<SessionOutput, RenderError> {
+        let run = self.render_run_session(scene, job, progress, *session)?;
+        let state = run.state.ok_or_else(|| self.no_state())?;
+        Ok(SessionOutput { output: run.output, state })
+    }
+
+    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
+        ImagePart::output_of_state(state)
+    }
+
+    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
+        ImagePart::merge(parts)
+    }
 }
 
 impl LightTracer {
     /// The render with its unnormalised film (`Integrator::render` keeps only the output). Each
     /// "sample" of pixel (x, y) is one light path, splatted wherever its connections land.
     pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<ImageRun, RenderError> {
-        let render = ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?;
+        self.render_run_session(scene, job, progress, Session::default())
+    }
+
+    /// [`Self::render_run`] under a session (`crate::state`): resumed, sharded, stopped early.
+    pub fn render_run_session(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: Session,
+    ) -> Result<ImageRun, RenderError> {
+        let render = ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?.with_session(session)?;
         let ctx = BdptContext::new(scene, self.settings.rr_depth as usize, MisHeuristic::None);
         let max_vertices = self.settings.max_depth as usize + 1;
         let (mut run, _) = render.run(

@@ -11,15 +11,16 @@ pub mod pt;
 
 use std::time::Duration;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::film::Image;
 use crate::scene::Scene;
+use crate::state::{RenderState, Session, SessionOutput, StateError};
 use crate::stats::Counters;
 
 /// How much work a render may do.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Budget {
     /// Samples per pixel (path tracer, BDPT, light tracing) — or, for MCMC integrators, the
@@ -92,6 +93,10 @@ pub enum RenderError {
     /// A budget, count or memory need beyond what a render can do (`check_budget`, `memory`).
     #[error("{0}")]
     Limit(String),
+    /// A checkpoint, resume, shard or merge asked of an integrator that cannot do it, or a state
+    /// that does not fit the render.
+    #[error("{0}")]
+    State(#[from] StateError),
 }
 
 /// The longest time budget: 30 days. Longer is a typo or a hang (`--time 1e20` once panicked in
@@ -153,6 +158,38 @@ pub trait Integrator: Send + Sync {
     /// The settings in effect, for the stats report.
     fn settings_json(&self) -> serde_json::Value;
     fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError>;
+
+    /// The render under a `Session` (issues 19 and 21): resumed from a state, as a shard, stopped
+    /// early, checkpointed; returns the image of everything rendered and the state reached
+    /// (`crate::state`). Integrators that cannot save their units keep this default, which refuses.
+    fn render_session(
+        &self,
+        _scene: &Scene,
+        _job: &RenderJob,
+        _progress: &dyn Progress,
+        _session: &Session,
+    ) -> Result<SessionOutput, RenderError> {
+        Err(self.no_state())
+    }
+
+    /// The normalised image, counters and statistics of a state (a resumed render that had
+    /// nothing left to do, or merged shards).
+    fn output_of_state(&self, _state: &RenderState) -> Result<RenderOutput, RenderError> {
+        Err(self.no_state())
+    }
+
+    /// Merges the integrator's parts of the states of a render's shards, in shard order.
+    fn merge_parts(&self, _parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
+        Err(self.no_state())
+    }
+
+    /// The error of the defaults above.
+    fn no_state(&self) -> RenderError {
+        RenderError::State(StateError::Mismatch(format!(
+            "the {} integrator cannot be interrupted and resumed, checkpointed or sharded yet",
+            self.name()
+        )))
+    }
 }
 
 /// The names `create` accepts, in the order `plexus render --help` lists them.

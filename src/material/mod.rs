@@ -54,7 +54,7 @@ pub const INVERT_DIRECTION_TOLERANCE: f32 = 1e-6;
 
 /// Whether radiance (camera paths) or importance (light paths) is being transported; they differ
 /// for refraction (the 1/η² radiance scaling) and for shading normals.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
 pub enum TransportMode {
     Radiance,
     Importance,

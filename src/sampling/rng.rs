@@ -4,7 +4,8 @@ use rand_pcg::Pcg64Mcg;
 
 /// A deterministic random stream. Streams are derived from (seed, stream index) — a pixel, a
 /// tile, a chain — never from thread identity or timing, so a render is reproducible bit for bit.
-#[derive(Clone, Debug)]
+/// Serialisable (`rand_pcg`'s `serde1`) so that a chain's stream is saved in checkpoints.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Rng(Pcg64Mcg);
 
 impl Rng {

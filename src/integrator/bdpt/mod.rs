@@ -33,7 +33,8 @@ pub use subpath::{
 };
 pub use vertex::{Vertex, VertexKind};
 
-use super::driver::{ImageRender, ImageRun};
+use super::driver::{ImagePart, ImageRender, ImageRun};
+use crate::state::{RenderState, Session, SessionOutput};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::film::{Accumulator, SplatBuffer};
 use crate::sampling::{Rng, UniformSource};
@@ -257,6 +258,33 @@ impl Integrator for Bdpt {
     fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
         self.render_run(scene, job, progress).map(|run| run.output)
     }
+
+    fn render_session(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+    ) -> Result<SessionOutput, RenderError> {
+        if self.settings.technique_images && (session.resume.is_some() || session.shard.is_some()) {
+            // The layers are per-slot films (their low bits depend on the threads), not in a state.
+            return Err(crate::state::StateError::Mismatch(
+                "bdpt's technique_images layers are not saved in state files: resume or shard without them".into(),
+            )
+            .into());
+        }
+        let run = self.render_run_session(scene, job, progress, *session)?;
+        let state = run.state.ok_or_else(|| self.no_state())?;
+        Ok(SessionOutput { output: run.output, state })
+    }
+
+    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
+        ImagePart::output_of_state(state)
+    }
+
+    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
+        ImagePart::merge(parts)
+    }
 }
 
 impl Bdpt {
@@ -264,8 +292,19 @@ impl Bdpt {
     /// technique layers when `technique_images` is set. (Those layers are per-slot films merged in
     /// slot order, so unlike the image their low bits depend on the thread count.)
     pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<ImageRun, RenderError> {
+        self.render_run_session(scene, job, progress, Session::default())
+    }
+
+    /// [`Self::render_run`] under a session (`crate::state`): resumed, sharded, stopped early.
+    pub fn render_run_session(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: Session,
+    ) -> Result<ImageRun, RenderError> {
         let (width, height) = (scene.camera.width, scene.camera.height);
-        let render = ImageRender::new(job, width, height, progress)?;
+        let render = ImageRender::new(job, width, height, progress)?.with_session(session)?;
         let ctx = self.context(scene);
         let technique_depth = (self.settings.technique_max_depth.min(self.settings.max_depth)) as usize;
         let (mut run, slot_states) = render.run(

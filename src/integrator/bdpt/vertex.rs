@@ -11,7 +11,7 @@ use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
 /// What a vertex is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum VertexKind {
     /// The pinhole (the first vertex of every camera subpath, or the camera point a `t = 1`
     /// connection samples).
@@ -25,7 +25,7 @@ pub enum VertexKind {
 }
 
 /// One vertex of a camera or light subpath.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Vertex {
     pub kind: VertexKind,
     pub p: Vec3,

@@ -52,31 +52,28 @@
 //! Each iteration splats the proposal with weight a and the current state with 1 − a (Veach's
 //! expected values), so rejected proposals still contribute.
 
-use std::sync::{Mutex, PoisonError};
-use std::time::Instant;
-
 use glam::Vec2;
+use serde::{Deserialize, Serialize};
 
 use super::inverse::{invert_technique, same_path, InversionFailure};
 use super::jump::{jump_acceptance, JumpSide};
 use super::sampler::{MutationSettings, PssSampler};
 use super::settings::{MltSettings, MltVariant};
-use super::stats::{MltStats, MoveKind, MoveStats};
+use super::stats::{MltStats, MoveKind};
 use crate::film::{Accumulator, Image, SplatBuffer};
 use crate::integrator::bdpt::path::full_path;
 use crate::integrator::bdpt::{
     connect_all, evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch,
     FilmRegion, Vertex,
 };
-use crate::integrator::driver::{Driver, PassBoundary, Passes, Slot};
-use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
-use crate::sampling::{Distribution1D, Rng};
-use crate::scene::Scene;
+use crate::integrator::{RenderError, RenderOutput};
+use crate::sampling::Rng;
 use crate::spectrum::{is_finite, luminance, Rgb};
 use crate::stats::{AcceptanceCount, Counters};
 
 mod depth_choice;
-use depth_choice::{LargeStepTotals, PooledLargeSteps};
+mod render;
+use depth_choice::LargeStepTotals;
 
 /// Primary-sample streams: camera subpath, light subpath, connection, technique (MMLT's u_t).
 const CAMERA_STREAM: usize = 0;
@@ -101,14 +98,14 @@ pub struct Mlt {
 }
 
 /// One contribution of a state to the film.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
 struct Splat {
     raster: Vec2,
     value: Rgb,
 }
 
 /// The contributions of one primary-sample state and its scalar target.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 struct PathState {
     splats: Vec<Splat>,
     target: f32,
@@ -135,14 +132,18 @@ struct Bootstrap<'a> {
 /// A chain for one depth (MMLT) or for all depths (PSSMLT). A sub-chain of a depth the bootstrap
 /// missed starts with a zero-target state and searches (`Mlt::search`) until a large step finds
 /// its first non-zero state.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 struct SubChain {
     sampler: PssSampler,
     current: PathState,
 }
 
-/// A Markov chain unit: its own random stream (depth choice, acceptance) and its sub-chains.
+/// A Markov chain unit: its own random stream (depth choice, acceptance) and its sub-chains. All
+/// of it is saved in checkpoints and shards (`crate::state::UnitState`, through serde).
+#[derive(Serialize, Deserialize)]
 struct ChainUnit {
+    /// The chain's index in the whole render (a shard holds some of the chains).
+    index: u64,
     rng: Rng,
     /// Per depth: sum and count of this unit's large-step targets so far, for the depth choice.
     large_steps: LargeStepTotals,
@@ -627,272 +628,4 @@ fn techniques_of_subpaths(light: usize, camera: usize, max_depth: usize) -> u32 
         }
     }
     n
-}
-
-impl Integrator for Mlt {
-    fn name(&self) -> &'static str {
-        self.variant.name()
-    }
-
-    fn settings_json(&self) -> serde_json::Value {
-        serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
-    }
-
-    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
-        self.render_run(scene, job, progress).map(|run| run.output)
-    }
-}
-
-impl Mlt {
-    /// The render with the driver's stacked per-depth film (`Integrator::render` keeps only the
-    /// output).
-    pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<MltRun, RenderError> {
-        let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
-        let pixels = (width * height) as u64;
-        let depths = self.depth_count();
-        // Mutations per pixel × pixels must not overflow (`Budget::SamplesPerPixel` below).
-        crate::integrator::check_budget(job.budget, scene.camera.width, scene.camera.height, "budget")?;
-        // The driver's film stacks the depths' images (module docs, "Films and threads"); the
-        // driver refuses it beyond 2^32 pixels, and a stack beyond 2^32 rows is reported as that.
-        let stacked_height = u32::try_from(height as u64 * depths as u64)
-            .map_err(|_| RenderError::FilmTooLarge { width: scene.camera.width, height: u32::MAX })?;
-        let driver = Driver::new(job, width as u32, stacked_height)?;
-        let rr = if self.settings.rr_depth == u32::MAX { usize::MAX } else { self.settings.rr_depth as usize };
-        let ctx = BdptContext::new(scene, rr, self.settings.mis);
-        let render_start = Instant::now();
-        let time_budget = match job.budget {
-            Budget::Seconds(s) => Some(s),
-            Budget::SamplesPerPixel(_) => None,
-        };
-
-        // Bootstrap: up to `bootstrap` uniform samples per depth, in batches over the pool
-        // (deterministic: each sample has its own stream). Each batch keeps its samples' targets.
-        // The first round runs one batch per depth; under a time budget the remaining rounds are
-        // capped so that the bootstrap takes at most BOOTSTRAP_SHARE of the budget (large steps
-        // keep refining b during the render, so a shorter bootstrap costs accuracy of the start
-        // only, not correctness).
-        progress.message("bootstrap");
-        const BATCH: u64 = 4096;
-        const BOOTSTRAP_SHARE: f64 = 0.25;
-        let n_requested = self.settings.bootstrap;
-        let batches_per_depth = n_requested.div_ceil(BATCH);
-        let run_batches = |rounds: std::ops::Range<u64>| {
-            let batches: Vec<(usize, u64, Vec<f32>)> =
-                (0..depths).flat_map(|d| rounds.clone().map(move |b| (d, b, Vec::new()))).collect();
-            driver.run(
-                batches,
-                Passes::Count(1),
-                progress,
-                |_| self.new_slot(0, 0),
-                |_, (d, b, targets), slot| {
-                    let start = *b * BATCH;
-                    let end = (start + BATCH).min(n_requested);
-                    for i in start..end {
-                        let mut sampler = self.bootstrap_sampler(job.seed, *d, i);
-                        sampler.start_iteration_with(true);
-                        let st = self.evaluate(&ctx, *d, &mut sampler, None, &mut slot.state, &mut slot.counters);
-                        targets.push(st.target);
-                    }
-                    0
-                },
-                None,
-            )
-        };
-        let first = run_batches(0..1);
-        let rounds = match time_budget {
-            Some(s) => {
-                let round = first.elapsed.as_secs_f64().max(1e-6);
-                let affordable = ((BOOTSTRAP_SHARE * s - round) / round).floor().max(0.0) as u64;
-                batches_per_depth.min(1 + affordable)
-            }
-            None => batches_per_depth,
-        };
-        let rest = run_batches(1..rounds);
-        let n_boot = n_requested.min(rounds * BATCH);
-        let mut boot_counters = first.counters;
-        boot_counters.merge(&rest.counters);
-        let boot_elapsed = first.elapsed + rest.elapsed;
-        let mut boot_targets: Vec<Vec<f32>> = vec![Vec::with_capacity(n_boot as usize); depths];
-        for (d, _, t) in first.units.into_iter().chain(rest.units) {
-            boot_targets[d].extend(t);
-        }
-        let boot_sums: Vec<f64> = boot_targets.iter().map(|t| t.iter().map(|&x| x as f64).sum()).collect();
-        let b_boot: Vec<f64> = boot_sums.iter().map(|s| s / n_boot as f64).collect();
-        let b_total: f64 = b_boot.iter().sum();
-
-        let mut warnings: Vec<String> = Vec::new();
-        if !(b_total > 0.0) {
-            warnings.push(format!(
-                "no bootstrap path ({} per depth) carried light to the camera: the image is black. Check that \
-                 emitters are visible from the camera's surroundings, or raise `bootstrap`.",
-                n_boot
-            ));
-            let output = RenderOutput {
-                image: Image::new(width, height),
-                layers: Vec::new(),
-                counters: boot_counters,
-                wall_time: render_start.elapsed(),
-                extra_stats: serde_json::json!({ "warnings": warnings, "b": b_boot, "bootstrap_paths_per_depth": n_boot }),
-            };
-            return Ok(MltRun { output, film: Accumulator::new(width, height * depths) });
-        }
-        // Without progressive b a depth's b_d stays the bootstrap's, so a depth it missed cannot
-        // be recovered and is not chosen (`depth_choice`); a warning says so.
-        let recoverable = |d: usize| b_boot[d] > 0.0 || self.settings.progressive_b;
-        if depths > 1 && !self.settings.progressive_b {
-            let missed: Vec<usize> = (0..depths).filter(|&d| b_boot[d] == 0.0).collect();
-            if !missed.is_empty() {
-                warnings.push(format!(
-                    "no bootstrap path ({n_boot} per depth) found light at depth(s) {missed:?}, and without \
-                     progressive_b their b_d stays 0: their light is missing from the image. Raise `bootstrap` \
-                     or enable `progressive_b`."
-                ));
-            }
-        }
-        let boot_dists: Vec<Option<Distribution1D>> =
-            boot_targets.iter().zip(&b_boot).map(|(t, &b)| (b > 0.0).then(|| Distribution1D::new(t))).collect();
-
-        // Chains: each sub-chain starts from a bootstrap sample chosen ∝ its target (start-up bias
-        // is negligible this way: the start is distributed as the target up to the bootstrap's
-        // finite sample), reproduced exactly from its stream.
-        let mut init_slot = self.new_slot(0, 0);
-        let mut init_counters = Counters::default();
-        let units: Vec<ChainUnit> = (0..self.settings.chains)
-            .map(|c| {
-                let mut rng = Rng::new(job.seed ^ CHAIN_SEED_SALT, c);
-                let subchains = (0..depths)
-                    .map(|d| {
-                        let own_stream = Rng::new(job.seed ^ SUBCHAIN_SEED_SALT, c * depths as u64 + d as u64);
-                        let Some(dist) = boot_dists[d].as_ref() else {
-                            // A depth the bootstrap missed: the chain searches from a zero state.
-                            let sampler = PssSampler::new(own_stream, self.mutation(), STREAM_COUNT);
-                            return recoverable(d).then(|| SubChain { sampler, current: PathState::default() });
-                        };
-                        let (i, _, _) = dist.sample_discrete(rng.uniform());
-                        let mut sampler = self.bootstrap_sampler(job.seed, d, i as u64);
-                        sampler.start_iteration_with(true);
-                        let current = self.evaluate(&ctx, d, &mut sampler, None, &mut init_slot, &mut init_counters);
-                        sampler.accept();
-                        sampler.reseed(own_stream);
-                        Some(SubChain { sampler, current })
-                    })
-                    .collect();
-                ChainUnit { rng, large_steps: vec![(0.0, 0); depths], subchains }
-            })
-            .collect();
-
-        // Budget: one pass is about one mutation per pixel over all chains.
-        let segment = pixels.div_ceil(self.settings.chains).max(1);
-        let per_pass = segment * self.settings.chains;
-        let passes = match job.budget {
-            Budget::SamplesPerPixel(mpp) => {
-                let total = mpp * pixels;
-                progress.set_total(total.div_ceil(per_pass) * per_pass);
-                Passes::Count(total.div_ceil(per_pass))
-            }
-            // The bootstrap and the chains' start are part of the user's budget.
-            Budget::Seconds(s) => Passes::Seconds((s - render_start.elapsed().as_secs_f64()).max(0.0)),
-        };
-        progress.message("mutating");
-        let bootstrap = Bootstrap { sums: &boot_sums, paths: n_boot };
-        let preview = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
-            let large_steps = self.large_step_totals(at.units);
-            let iterations = self.iteration_counts(at.slots.iter().map(|slot| &slot.state));
-            self.normalised_image(at.film, &large_steps, &iterations, &bootstrap).0
-        };
-        let unit_totals = || (0..self.settings.chains).map(|_| Mutex::new(vec![(0.0, 0); depths])).collect();
-        let pooled = PooledLargeSteps { written: [unit_totals(), unit_totals()], choice: Mutex::new(None) };
-        let out = driver.run(
-            units,
-            passes,
-            progress,
-            |_| self.new_slot(width, height),
-            |item, unit, slot| {
-                let Slot { index, state, film, counters } = slot;
-                let depth_choice = (depths > 1).then(|| self.depth_choice(&bootstrap, &pooled, item.pass));
-                for _ in 0..segment {
-                    let d = depth_choice.as_ref().map_or(0, |c| c.sample_discrete(unit.rng.uniform()).0);
-                    let Some(chain) = unit.subchains[d].as_mut() else { continue };
-                    if let Some(target) = self.iterate(&ctx, d, chain, &mut unit.rng, state, film, counters) {
-                        let depth = &mut state.stats.per_depth[d];
-                        depth.large_step_target_sum += target as f64;
-                        depth.large_steps += 1;
-                        unit.large_steps[d].0 += target as f64;
-                        unit.large_steps[d].1 += 1;
-                    }
-                }
-                if depths > 1 {
-                    let mut written = pooled.written[(item.pass % 2) as usize][item.unit]
-                        .lock()
-                        .unwrap_or_else(PoisonError::into_inner);
-                    written.clone_from(&unit.large_steps);
-                }
-                if *index == 0 {
-                    let moves = &state.stats.moves;
-                    let (proposed, accepted) = [&moves.large, &moves.small]
-                        .into_iter()
-                        .chain(moves.jump.as_ref())
-                        .fold((0, 0), |(p, a), m| (p + m.proposals, a + m.accepted));
-                    progress.message(&format!("acceptance {:.1}%", 100.0 * accepted as f64 / proposed.max(1) as f64));
-                }
-                segment
-            },
-            Some(&preview),
-        );
-
-        // The image: the driver's film, each depth normalised with the large-step totals pooled in
-        // unit order and the depths' iteration counts (integers: any merge order gives them).
-        let large_steps = self.large_step_totals(&out.units);
-        let mut slots = out.slot_states.into_iter();
-        let Some(mut merged) = slots.next() else {
-            return Err(RenderError::Settings("no worker ran".into()));
-        };
-        for s in slots {
-            if let (Some(m), Some(o)) = (merged.count_films.as_mut(), s.count_films.as_ref()) {
-                for (a, b) in m.iter_mut().flatten().zip(o.iter().flatten()) {
-                    a.merge(b);
-                }
-            }
-            merged.stats.merge(&s.stats);
-        }
-        let iterations = self.iteration_counts(std::iter::once(&merged));
-        for (depth, (sum, _)) in merged.stats.per_depth.iter_mut().zip(&large_steps) {
-            // The slot-order f64 sum would differ in its last bits between thread counts.
-            depth.large_step_target_sum = *sum;
-        }
-        let (image, b_final) = self.normalised_image(&out.film, &large_steps, &iterations, &bootstrap);
-
-        let mut layers = Vec::new();
-        if let Some(films) = merged.count_films.as_ref() {
-            for (d, per_s) in films.iter().enumerate() {
-                for (s, f) in per_s.iter().enumerate() {
-                    layers.push((format!("count.d{d}.s{s}t{}", d + 2 - s), f.to_image(1.0)));
-                }
-            }
-        }
-        let mut stats = merged.stats;
-        stats.passes = out.passes;
-        stats.segment_length = segment;
-        stats.bootstrap_paths_per_depth = n_boot;
-        stats.bootstrap_seconds = boot_elapsed.as_secs_f64();
-        stats.warnings = warnings;
-        stats.finish(pixels, &b_boot, &b_final);
-        let mut counters = out.counters;
-        let strategy = |m: &MoveStats| AcceptanceCount { proposed: m.proposals, accepted: m.accepted as f64 };
-        counters.strategies.insert("large_step".to_string(), strategy(&stats.moves.large));
-        counters.strategies.insert("small_step".to_string(), strategy(&stats.moves.small));
-        if let Some(jump) = stats.moves.jump.as_ref() {
-            counters.strategies.insert("technique_jump".to_string(), strategy(jump));
-        }
-        counters.merge(&boot_counters);
-        counters.merge(&init_counters);
-        let output = RenderOutput {
-            image,
-            layers,
-            counters,
-            wall_time: render_start.elapsed(),
-            extra_stats: serde_json::to_value(&stats).unwrap_or(serde_json::Value::Null),
-        };
-        Ok(MltRun { output, film: out.film })
-    }
 }

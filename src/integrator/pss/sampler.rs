@@ -17,10 +17,12 @@
 //! one (exact; the cost is bounded by the accepted iterations since the coordinate was last read,
 //! and a coordinate older than the last accepted large step is redrawn instead).
 
+use serde::{Deserialize, Serialize};
+
 use crate::sampling::{Rng, UniformSource};
 
 /// One coordinate of the state, with what is needed to undo the last mutation.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
 struct PrimarySample {
     value: f64,
     /// Iteration at which `value` was last brought up to date.
@@ -42,7 +44,7 @@ impl PrimarySample {
 
 /// The small-step perturbation of one primary sample u (wrapped to [0, 1)). Both are symmetric,
 /// so the acceptance needs no transition densities (MMLT paper Sec. 4).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum SmallStep {
     /// u + N(0, σ²) (pbrt-v3's PSSMLT).
     Gaussian { sigma: f64 },
@@ -79,7 +81,7 @@ impl SmallStep {
 }
 
 /// Settings of the primary-sample-space mutation (defaults: Kelemen et al. 2002 / the MMLT paper).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MutationSettings {
     /// Probability that an iteration is a large step (independent resampling of every coordinate).
     pub large_step_probability: f64,
@@ -94,7 +96,7 @@ impl Default for MutationSettings {
 }
 
 /// The state of one primary-sample-space Markov chain.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PssSampler {
     rng: Rng,
     settings: MutationSettings,

@@ -4,7 +4,7 @@
 //! `integrator_stats` JSON (tests/mlt.rs, scripts/bench-mlt.sh and scripts/fig4_table.py read it by
 //! these field names). A new statistic is one field here, plus its line in `merge`.
 
-use serde::{Serialize, Serializer};
+use serde::{Deserialize, Serialize, Serializer};
 
 use super::inverse::InversionFailure;
 use crate::stats::AcceptanceCount;
@@ -19,7 +19,7 @@ pub enum MoveKind {
 
 /// Proposals of one move type (large step, small step, technique jump), with the same measures for
 /// all three integrators so that they are comparable.
-#[derive(Clone, Copy, Debug, Default, Serialize)]
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize)]
 pub struct MoveStats {
     /// Proposals made (a jump that chose the current technique proposes nothing and is counted in
     /// `JumpStats::to_same_technique` instead).
@@ -57,7 +57,7 @@ impl MoveStats {
 }
 
 /// Per move type. `jump` is null except for RJMLT.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct MoveTypes {
     pub large: MoveStats,
     pub small: MoveStats,
@@ -79,7 +79,7 @@ impl MoveTypes {
 }
 
 /// Iterations with technique (s, t) as the chain's state (MMLT paper, Fig. 5).
-#[derive(Clone, Copy, Debug, Default, Serialize)]
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize)]
 pub struct TechniqueCount {
     pub s: usize,
     pub t: usize,
@@ -87,7 +87,7 @@ pub struct TechniqueCount {
 }
 
 /// One path depth's chains (PSSMLT: the one chain over all depths).
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct DepthStats {
     /// Scattering events; null for PSSMLT.
     pub depth: Option<usize>,
@@ -140,7 +140,7 @@ impl DepthStats {
 }
 
 /// RJMLT's technique jumps over all depths.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct JumpStats {
     /// Derived by `finish` from the per-depth jumps: jumps to another technique and their
     /// acceptance (null without any).
@@ -175,7 +175,7 @@ impl JumpStats {
 }
 
 /// Everything a PSSMLT, MMLT or RJMLT render reports besides the image and the shared counters.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct MltStats {
     /// Derived by `finish`: proposals over all depths and move types, and per pixel.
     pub mutations: u64,
@@ -280,15 +280,26 @@ fn merge_option<T>(a: &mut Option<T>, b: &Option<T>, merge: impl Fn(&mut T, &T))
     }
 }
 
+// The JSON report shows rates and names; a state file (bincode, not human-readable) keeps the
+// counts themselves, which the derived `Deserialize` reads back.
 fn rate_or_zero<S: Serializer>(a: &AcceptanceCount, s: S) -> Result<S::Ok, S::Error> {
+    if !s.is_human_readable() {
+        return a.serialize(s);
+    }
     s.serialize_f64(a.rate())
 }
 
 fn rate_or_null<S: Serializer>(a: &AcceptanceCount, s: S) -> Result<S::Ok, S::Error> {
+    if !s.is_human_readable() {
+        return a.serialize(s);
+    }
     (a.proposed > 0).then(|| a.rate()).serialize(s)
 }
 
 fn proposals_and_rate<S: Serializer>(a: &Option<AcceptanceCount>, s: S) -> Result<S::Ok, S::Error> {
+    if !s.is_human_readable() {
+        return a.serialize(s);
+    }
     #[derive(Serialize)]
     struct ProposalsAndRate {
         proposals: u64,
@@ -298,6 +309,9 @@ fn proposals_and_rate<S: Serializer>(a: &Option<AcceptanceCount>, s: S) -> Resul
 }
 
 fn failures_by_name<S: Serializer>(counts: &[u64; 5], s: S) -> Result<S::Ok, S::Error> {
+    if !s.is_human_readable() {
+        return counts.serialize(s);
+    }
     s.collect_map(InversionFailure::ALL.iter().map(|f| f.name()).zip(counts))
 }
 

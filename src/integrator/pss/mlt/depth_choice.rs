@@ -1,8 +1,6 @@
-//! Which depth an MMLT/RJMLT iteration renders: the depth choice with its floor, the render-wide
-//! large-step totals it pools in unit order, and the search that starts the chains of a depth the
+//! Which depth an MMLT/RJMLT iteration renders: the depth choice with its floor, the large-step
+//! totals behind it and b_d, and the search that starts the chains of a depth the
 //! bootstrap missed (issue 12). A submodule of `mlt` so that it shares the chain types.
-
-use std::sync::{Arc, Mutex, PoisonError};
 
 use super::{Bootstrap, ChainUnit, Mlt, SlotState, SubChain};
 use crate::integrator::bdpt::BdptContext;
@@ -11,7 +9,7 @@ use crate::stats::Counters;
 
 /// Share of the depth choice spread evenly over the depths (MMLT, RJMLT), so that a depth whose
 /// b_d estimate is 0 or far too small is still visited: p(d) = (1 − ε)·b̂_d/Σb̂ + ε/D, with b̂_d
-/// the render's estimate at the end of the previous pass (`Mlt::depth_choice`, `PooledLargeSteps`). The MMLT paper (Sec. 4,
+/// the chain's estimate (`Mlt::depth_choice`). The MMLT paper (Sec. 4,
 /// "Initialization") chooses p(d) ∝ b_d and recommends progressive b as "less likely to miss rare
 /// bounces when an initial estimate of b_k is zero but b_k > 0"; but with p(d) ∝ b_d alone a depth
 /// whose bootstrap b_d is 0 never receives an iteration, so no large step of it ever refines b_d
@@ -23,17 +21,6 @@ const DEPTH_CHOICE_FLOOR: f64 = 0.1;
 
 /// Per depth: the sum and count of large-step targets.
 pub(super) type LargeStepTotals = Vec<(f64, u64)>;
-
-/// The render-wide large steps behind the depth choice, pooled deterministically: after its
-/// segment of pass k every unit writes its running totals to `written[k mod 2][unit]`; the first
-/// unit of pass k + 1 to need the choice sums `written[k mod 2]` in unit order (all of pass k has
-/// ended: passes are synchronised) while pass k + 1 writes the other buffer. So every unit of a
-/// pass uses the same choice, whatever the threads' timing, and the image stays bit-identical.
-pub(super) struct PooledLargeSteps {
-    pub(super) written: [Vec<Mutex<LargeStepTotals>>; 2],
-    /// The choice of the pass it was computed for.
-    pub(super) choice: Mutex<Option<(u64, Arc<Distribution1D>)>>,
-}
 
 impl Mlt {
     /// Per depth, the sum and count of every large-step target of the chains so far, pooled in
@@ -81,38 +68,21 @@ impl Mlt {
         target
     }
 
-    /// The depth choice of pass `pass`: p(d) = (1 − ε)·b̂_d/Σb̂ + ε/D (`DEPTH_CHOICE_FLOOR`), with
-    /// b̂_d the bootstrap's estimate refined, under progressive b, by every large step of the
-    /// passes before (the MMLT paper's progressive b_k, Sec. 4 "Initialization", applied to the
-    /// choice as well as to the normalisation). Depths that cannot be recovered (bootstrap b_d = 0
-    /// without progressive b: their image is scaled by b_d = 0) are never chosen.
-    pub(super) fn depth_choice(
-        &self,
-        bootstrap: &Bootstrap,
-        pooled: &PooledLargeSteps,
-        pass: u64,
-    ) -> Arc<Distribution1D> {
-        let mut cached = pooled.choice.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some((p, choice)) = cached.as_ref() {
-            if *p == pass {
-                return choice.clone();
-            }
-        }
+    /// The depth choice of a chain's next segment: p(d) = (1 − ε)·b̂_d/Σb̂ + ε/D
+    /// (`DEPTH_CHOICE_FLOOR`), with b̂_d the bootstrap's estimate refined, under progressive b, by
+    /// the chain's own large steps so far (`own`; the MMLT paper's progressive b_k, Sec. 4
+    /// "Initialization", applied to the choice as well as to the normalisation). The choice depends
+    /// on the chain alone, never on other chains: a chain renders the same segments in a shard as
+    /// in the whole render (issue 21), and no pass waits for the others' totals. (The render-wide
+    /// totals it once pooled move effort a little sooner; the estimator does not depend on p(d).)
+    /// Depths that cannot be recovered (bootstrap b_d = 0 without progressive b: their image is
+    /// scaled by b_d = 0) are never chosen.
+    pub(super) fn depth_choice(&self, bootstrap: &Bootstrap, own: &LargeStepTotals) -> Distribution1D {
         let depths = self.depth_count();
-        let mut large_steps = vec![(0.0f64, 0u64); depths];
-        if pass > 0 {
-            for unit in &pooled.written[((pass - 1) % 2) as usize] {
-                let unit = unit.lock().unwrap_or_else(PoisonError::into_inner);
-                for (total, own) in large_steps.iter_mut().zip(unit.iter()) {
-                    total.0 += own.0;
-                    total.1 += own.1;
-                }
-            }
-        }
         let b: Vec<f64> = (0..depths)
             .map(|d| {
                 if self.settings.progressive_b {
-                    let (sum, n) = large_steps[d];
+                    let (sum, n) = own[d];
                     (bootstrap.sums[d] + sum) / (bootstrap.paths + n) as f64
                 } else {
                     bootstrap.sums[d] / bootstrap.paths as f64
@@ -129,8 +99,6 @@ impl Mlt {
                 ((1.0 - DEPTH_CHOICE_FLOOR) * share + floor) as f32
             })
             .collect();
-        let choice = Arc::new(Distribution1D::new(&weights));
-        *cached = Some((pass, choice.clone()));
-        choice
+        Distribution1D::new(&weights)
     }
 }

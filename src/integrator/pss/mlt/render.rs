@@ -1,0 +1,512 @@
+//! The MLT render: bootstrap, chains, the driver's passes and the normalised output — from the
+//! start or from a saved state, for all chains or a shard's (issues 19 and 21). What a state keeps
+//! of it is [`MltPart`]: the bootstrap every chain and the normalisation share, the chains
+//! themselves (sampler, current path, random stream, large-step totals) and the slots' statistics
+//! merged, whose per-depth iteration counts the normalisation divides by.
+
+use std::time::{Duration, Instant};
+
+use serde::{Deserialize, Serialize};
+
+use super::{Bootstrap, ChainUnit, Mlt, MltRun, SlotState, SubChain, CHAIN_SEED_SALT};
+use super::{PathState, SUBCHAIN_SEED_SALT};
+use crate::film::Accumulator;
+use crate::integrator::driver::{state_film, Driver, PassBoundary, PassSet, Passes, RunStart, Slot};
+use crate::integrator::pss::sampler::PssSampler;
+use crate::integrator::pss::stats::{MltStats, MoveStats};
+use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
+use crate::sampling::{Distribution1D, Rng};
+use crate::scene::Scene;
+use crate::state::{decode, encode, RenderState, Session, SessionOutput, StateError, UnitState};
+use crate::stats::{AcceptanceCount, Counters};
+
+/// The bootstrap's outcome: per depth the sum of the targets of `paths` uniform samples, and the
+/// warnings it gave. Identical in every shard of a sample-budget render (its streams depend on the
+/// seed only), which the merge checks.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct BootstrapPart {
+    sums: Vec<f64>,
+    paths: u64,
+    /// Wall time (0 in shards, whose bytes depend on their units only).
+    seconds: f64,
+    warnings: Vec<String>,
+}
+
+/// The MLT part of a render state (`crate::state`).
+#[derive(Serialize, Deserialize)]
+struct MltPart {
+    bootstrap: BootstrapPart,
+    /// Mutations per chain and pass.
+    segment: u64,
+    /// The slots' statistics merged (per-depth iterations: the normalisation's divisors).
+    stats: MltStats,
+    /// The technique count layers, merged (only with `technique_count_layers`).
+    count_films: Option<Vec<Vec<Accumulator>>>,
+    /// The chains, by their index in the whole render, each written through `UnitState`.
+    units: Vec<(u64, Vec<u8>)>,
+}
+
+impl Integrator for Mlt {
+    fn name(&self) -> &'static str {
+        self.variant.name()
+    }
+
+    fn settings_json(&self) -> serde_json::Value {
+        serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
+    }
+
+    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
+        self.render_run(scene, job, progress).map(|run| run.output)
+    }
+
+    fn render_session(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+    ) -> Result<SessionOutput, RenderError> {
+        let (run, state) = self.run_session(scene, job, progress, session, true)?;
+        Ok(SessionOutput { output: run.output, state: state.ok_or_else(|| self.no_state())? })
+    }
+
+    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
+        let part: MltPart = decode(&state.part)?;
+        let units = part.units.iter().map(|(_, bytes)| ChainUnit::load(bytes)).collect::<Result<Vec<_>, _>>()?;
+        let film = state_film(state);
+        let depths = self.depth_count();
+        if film.height % depths != 0 {
+            return Err(StateError::Mismatch("the state's film does not hold one layer per depth".into()).into());
+        }
+        let mut slot = self.new_slot(0, 0);
+        slot.stats = part.stats;
+        slot.count_films = part.count_films;
+        let wall = Duration::try_from_secs_f64(state.wall_time_s).unwrap_or_default();
+        let tally = Tally { passes: state.passes_done, segment: part.segment, counters: state.counters.clone(), wall };
+        Ok(self.output(&film, &units, slot, &part.bootstrap, tally))
+    }
+
+    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
+        let mut merged: Option<MltPart> = None;
+        for bytes in parts {
+            let part: MltPart = decode(bytes)?;
+            let Some(m) = merged.as_mut() else {
+                merged = Some(part);
+                continue;
+            };
+            let same_bootstrap = (&m.bootstrap.sums, m.bootstrap.paths) == (&part.bootstrap.sums, part.bootstrap.paths);
+            if !same_bootstrap || m.segment != part.segment {
+                return Err(StateError::Mismatch("the shards did not start from the same bootstrap".into()).into());
+            }
+            m.stats.merge(&part.stats);
+            if let (Some(a), Some(b)) = (m.count_films.as_mut(), part.count_films.as_ref()) {
+                for (x, y) in a.iter_mut().flatten().zip(b.iter().flatten()) {
+                    x.merge(y);
+                }
+            }
+            m.units.extend(part.units);
+        }
+        let mut merged = merged.ok_or_else(|| StateError::Mismatch("no shard".into()))?;
+        merged.units.sort_by_key(|(index, _)| *index);
+        if let Some(pair) = merged.units.windows(2).find(|pair| pair[0].0 == pair[1].0) {
+            return Err(StateError::Mismatch(format!("chain {} is in two shards: their units overlap", pair[0].0)).into());
+        }
+        Ok(encode(&merged)?)
+    }
+}
+
+/// The render-level figures of an output.
+struct Tally {
+    passes: u64,
+    segment: u64,
+    counters: Counters,
+    wall: Duration,
+}
+
+impl Mlt {
+    /// The render with the driver's stacked per-depth film (`Integrator::render` keeps only the
+    /// output).
+    pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<MltRun, RenderError> {
+        self.run_session(scene, job, progress, &Session::default(), false).map(|(run, _)| run)
+    }
+
+    /// The render under `session`; with `save`, also the state it reached (which then takes the
+    /// film, and `MltRun::film` is empty).
+    fn run_session(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+        save: bool,
+    ) -> Result<(MltRun, Option<RenderState>), RenderError> {
+        let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
+        let pixels = (width * height) as u64;
+        let depths = self.depth_count();
+        // Mutations per pixel × pixels must not overflow (`Budget::SamplesPerPixel` below).
+        crate::integrator::check_budget(job.budget, scene.camera.width, scene.camera.height, "budget")?;
+        // The driver's film stacks the depths' images (module docs, "Films and threads"); the
+        // driver refuses it beyond 2^32 pixels, and a stack beyond 2^32 rows is reported as that.
+        let stacked_height = u32::try_from(height as u64 * depths as u64)
+            .map_err(|_| RenderError::FilmTooLarge { width: scene.camera.width, height: u32::MAX })?;
+        let driver = Driver::new(job, width as u32, stacked_height)?;
+        let rr = if self.settings.rr_depth == u32::MAX { usize::MAX } else { self.settings.rr_depth as usize };
+        let ctx = crate::integrator::bdpt::BdptContext::new(scene, rr, self.settings.mis);
+        let render_start = Instant::now();
+        let segment = pixels.div_ceil(self.settings.chains).max(1);
+        let per_pass = segment * self.settings.chains;
+        let shard = session.shard;
+
+        // Where the chains start: a saved state, or the bootstrap.
+        let mut counters_before = Counters::default();
+        let (boot, units, saved_slot, film, next_pass, earlier) = match session.resume {
+            Some(state) => {
+                if (state.film_width, state.film_height) != (width as u32, stacked_height)
+                    || state.unit_count != self.settings.chains
+                {
+                    return Err(StateError::Mismatch("the checkpoint's film or chains do not match the scene".into()).into());
+                }
+                let part: MltPart = decode(&state.part)?;
+                let units =
+                    part.units.iter().map(|(_, bytes)| ChainUnit::load(bytes)).collect::<Result<Vec<_>, _>>()?;
+                let mut slot = self.new_slot(width, height);
+                slot.stats = part.stats;
+                slot.count_films = part.count_films;
+                let saved = (state.counters.clone(), slot);
+                (part.bootstrap, units, Some(saved), Some(state_film(state)), state.passes_done, state.wall_time_s)
+            }
+            None => {
+                let (boot, boot_counters, dists) = self.bootstrap(&driver, &ctx, job, progress, shard.is_some())?;
+                counters_before = boot_counters;
+                let Some(dists) = dists else {
+                    // No light found: a black image, and a complete state.
+                    let film = Accumulator::new(width, height * depths);
+                    let tally = Tally { passes: 0, segment, counters: counters_before, wall: render_start.elapsed() };
+                    let mut empty = self.new_slot(0, 0);
+                    empty.count_films = None;
+                    let stats = empty.stats.clone();
+                    let output = self.output(&film, &[], empty, &boot, tally);
+                    let part = MltPart { bootstrap: boot, segment, stats, count_films: None, units: Vec::new() };
+                    let state = save.then(|| self.state(film, &output.counters, &part, 0, true, output.wall_time));
+                    return Ok((MltRun { output, film: Accumulator::new(width, height * depths) }, state.transpose()?));
+                };
+                let chains = (0..self.settings.chains).filter(|c| shard.is_none_or(|s| s.contains(*c)));
+                let mut init_slot = self.new_slot(0, 0);
+                let units: Vec<ChainUnit> =
+                    chains.map(|c| self.start_chain(c, &dists, &ctx, job.seed, &mut init_slot, &mut counters_before)).collect();
+                (boot, units, None, None, 0, 0.0)
+            }
+        };
+
+        let passes = match job.budget {
+            Budget::SamplesPerPixel(mpp) => {
+                let total = mpp * pixels;
+                let n = total.div_ceil(per_pass);
+                progress.set_total(n.saturating_sub(next_pass) * segment * units.len() as u64);
+                Passes::Count(n)
+            }
+            // The bootstrap and the chains' start are part of the user's budget.
+            Budget::Seconds(s) => Passes::Seconds((s - render_start.elapsed().as_secs_f64()).max(0.0)),
+        };
+        progress.message("mutating");
+        let bootstrap = Bootstrap { sums: &boot.sums, paths: boot.paths };
+        let preview = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
+            let large_steps = self.large_step_totals(at.units);
+            let iterations = self.iteration_counts(at.slots.iter().map(|slot| &slot.state));
+            self.normalised_image(at.film, &large_steps, &iterations, &bootstrap).0
+        };
+        let complete_at = |p: u64| matches!(passes, Passes::Count(n) if p >= n);
+        let checkpoint = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
+            let Some(sink) = session.checkpoint else { return };
+            let mut counters = counters_before.clone();
+            let mut merged = self.new_slot(0, 0);
+            merged.count_films = None;
+            for (i, slot) in at.slots.iter().enumerate() {
+                counters.merge(&slot.counters);
+                if i == 0 {
+                    merged.count_films = slot.state.count_films.clone();
+                    merged.stats = slot.state.stats.clone();
+                } else {
+                    merge_slot(&mut merged, &slot.state);
+                }
+            }
+            let part = self.part(&boot, segment, &merged, at.units);
+            let wall = render_start.elapsed() + Duration::try_from_secs_f64(earlier).unwrap_or_default();
+            match part.and_then(|part| self.state(at.film.clone(), &counters, &part, at.passes_done, complete_at(at.passes_done), wall)) {
+                Ok(state) => sink(state),
+                Err(e) => progress.message(&format!("checkpoint not written: {e}")),
+            }
+        };
+        let start = RunStart { units, next_pass, film, saved_slot, passes: PassSet::ALL };
+        let out = driver.run_from(
+            start,
+            passes,
+            progress,
+            |_| self.new_slot(width, height),
+            |_, unit, slot| {
+                let Slot { index, state, film, counters } = slot;
+                // The unit's own large steps so far: the choice depends on the chain alone.
+                let depth_choice = (depths > 1).then(|| self.depth_choice(&bootstrap, &unit.large_steps));
+                for _ in 0..segment {
+                    let d = depth_choice.as_ref().map_or(0, |c| c.sample_discrete(unit.rng.uniform()).0);
+                    let Some(chain) = unit.subchains[d].as_mut() else { continue };
+                    if let Some(target) = self.iterate(&ctx, d, chain, &mut unit.rng, state, film, counters) {
+                        let depth = &mut state.stats.per_depth[d];
+                        depth.large_step_target_sum += target as f64;
+                        depth.large_steps += 1;
+                        unit.large_steps[d].0 += target as f64;
+                        unit.large_steps[d].1 += 1;
+                    }
+                }
+                if *index == 0 {
+                    let moves = &state.stats.moves;
+                    let (proposed, accepted) = [&moves.large, &moves.small]
+                        .into_iter()
+                        .chain(moves.jump.as_ref())
+                        .fold((0, 0), |(p, a), m| (p + m.proposals, a + m.accepted));
+                    progress.message(&format!("acceptance {:.1}%", 100.0 * accepted as f64 / proposed.max(1) as f64));
+                }
+                segment
+            },
+            Some(&preview),
+            session.control,
+            session.checkpoint.is_some().then_some(&checkpoint as &crate::integrator::driver::CheckpointHook<'_, _, _>),
+        );
+
+        let mut slots = out.slot_states.into_iter();
+        let Some(mut merged) = slots.next() else {
+            return Err(RenderError::Settings("no worker ran".into()));
+        };
+        for s in slots {
+            merge_slot(&mut merged, &s);
+        }
+        let mut counters = out.counters;
+        counters.merge(&counters_before);
+        let wall = render_start.elapsed() + Duration::try_from_secs_f64(earlier).unwrap_or_default();
+        let boot_for_state = BootstrapPart { seconds: if shard.is_some() { 0.0 } else { boot.seconds }, ..boot.clone() };
+        let part = save.then(|| self.part(&boot_for_state, segment, &merged, &out.units)).transpose()?;
+        let tally = Tally { passes: out.passes, segment, counters, wall };
+        let output = self.output(&out.film, &out.units, merged, &boot, tally);
+        let (film, state) = match part {
+            Some(part) => {
+                let wall = if shard.is_some() { Duration::ZERO } else { output.wall_time };
+                let mut state = self.state(out.film, &output.counters, &part, out.passes, complete_at(out.passes), wall)?;
+                state.interrupted = out.stopped;
+                (Accumulator::new(0, 0), Some(state))
+            }
+            None => (out.film, None),
+        };
+        Ok((MltRun { output, film }, state))
+    }
+
+    /// The bootstrap (see the module docs): up to `bootstrap` uniform samples per depth, in
+    /// batches over the pool (deterministic: each sample has its own stream). Returns its outcome,
+    /// its counters and, unless no sample found light, per depth the distribution of its targets
+    /// the chains start from. `same_everywhere` (a shard): a time budget may not shorten it.
+    fn bootstrap(
+        &self,
+        driver: &Driver,
+        ctx: &crate::integrator::bdpt::BdptContext,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        same_everywhere: bool,
+    ) -> Result<(BootstrapPart, Counters, Option<Vec<Option<Distribution1D>>>), RenderError> {
+        let depths = self.depth_count();
+        // The first round runs one batch per depth; under a time budget the remaining rounds are
+        // capped so that the bootstrap takes at most BOOTSTRAP_SHARE of the budget (large steps
+        // keep refining b during the render, so a shorter bootstrap costs accuracy of the start
+        // only, not correctness).
+        progress.message("bootstrap");
+        const BATCH: u64 = 4096;
+        const BOOTSTRAP_SHARE: f64 = 0.25;
+        let n_requested = self.settings.bootstrap;
+        let batches_per_depth = n_requested.div_ceil(BATCH);
+        let run_batches = |rounds: std::ops::Range<u64>| {
+            let batches: Vec<(usize, u64, Vec<f32>)> =
+                (0..depths).flat_map(|d| rounds.clone().map(move |b| (d, b, Vec::new()))).collect();
+            driver.run(
+                batches,
+                Passes::Count(1),
+                progress,
+                |_| self.new_slot(0, 0),
+                |_, (d, b, targets), slot| {
+                    let start = *b * BATCH;
+                    let end = (start + BATCH).min(n_requested);
+                    for i in start..end {
+                        let mut sampler = self.bootstrap_sampler(job.seed, *d, i);
+                        sampler.start_iteration_with(true);
+                        let st = self.evaluate(ctx, *d, &mut sampler, None, &mut slot.state, &mut slot.counters);
+                        targets.push(st.target);
+                    }
+                    0
+                },
+                None,
+            )
+        };
+        let first = run_batches(0..1);
+        let rounds = match job.budget {
+            Budget::Seconds(s) if !same_everywhere => {
+                let round = first.elapsed.as_secs_f64().max(1e-6);
+                let affordable = ((BOOTSTRAP_SHARE * s - round) / round).floor().max(0.0) as u64;
+                batches_per_depth.min(1 + affordable)
+            }
+            _ => batches_per_depth,
+        };
+        let rest = run_batches(1..rounds);
+        let n_boot = n_requested.min(rounds * BATCH);
+        let mut counters = first.counters;
+        counters.merge(&rest.counters);
+        let seconds = (first.elapsed + rest.elapsed).as_secs_f64();
+        let mut targets: Vec<Vec<f32>> = vec![Vec::with_capacity(n_boot as usize); depths];
+        for (d, _, t) in first.units.into_iter().chain(rest.units) {
+            targets[d].extend(t);
+        }
+        let sums: Vec<f64> = targets.iter().map(|t| t.iter().map(|&x| x as f64).sum()).collect();
+        let b_total: f64 = sums.iter().map(|s| s / n_boot as f64).sum();
+        let mut warnings: Vec<String> = Vec::new();
+        if !(b_total > 0.0) {
+            warnings.push(format!(
+                "no bootstrap path ({} per depth) carried light to the camera: the image is black. Check that \
+                 emitters are visible from the camera's surroundings, or raise `bootstrap`.",
+                n_boot
+            ));
+            return Ok((BootstrapPart { sums, paths: n_boot, seconds, warnings }, counters, None));
+        }
+        // Without progressive b a depth's b_d stays the bootstrap's, so a depth it missed cannot
+        // be recovered and is not chosen (`depth_choice`); a warning says so.
+        if depths > 1 && !self.settings.progressive_b {
+            let missed: Vec<usize> = (0..depths).filter(|&d| sums[d] == 0.0).collect();
+            if !missed.is_empty() {
+                warnings.push(format!(
+                    "no bootstrap path ({n_boot} per depth) found light at depth(s) {missed:?}, and without \
+                     progressive_b their b_d stays 0: their light is missing from the image. Raise `bootstrap` \
+                     or enable `progressive_b`."
+                ));
+            }
+        }
+        let dists = targets.iter().zip(&sums).map(|(t, &s)| (s > 0.0).then(|| Distribution1D::new(t))).collect();
+        Ok((BootstrapPart { sums, paths: n_boot, seconds, warnings }, counters, Some(dists)))
+    }
+
+    /// Chain `c`: each sub-chain starts from a bootstrap sample chosen ∝ its target (start-up bias
+    /// is negligible this way: the start is distributed as the target up to the bootstrap's finite
+    /// sample), reproduced exactly from its stream. Depends on the seed and `c` only, so a shard
+    /// starts its chains as the whole render does.
+    fn start_chain(
+        &self,
+        c: u64,
+        dists: &[Option<Distribution1D>],
+        ctx: &crate::integrator::bdpt::BdptContext,
+        seed: u64,
+        init_slot: &mut SlotState,
+        counters: &mut Counters,
+    ) -> ChainUnit {
+        let depths = self.depth_count();
+        let mut rng = Rng::new(seed ^ CHAIN_SEED_SALT, c);
+        let subchains = (0..depths)
+            .map(|d| {
+                let own_stream = Rng::new(seed ^ SUBCHAIN_SEED_SALT, c * depths as u64 + d as u64);
+                let Some(dist) = dists[d].as_ref() else {
+                    // A depth the bootstrap missed: the chain searches from a zero state (only
+                    // with progressive b: otherwise the depth is never chosen).
+                    let sampler = PssSampler::new(own_stream, self.mutation(), super::STREAM_COUNT);
+                    return self.settings.progressive_b.then(|| SubChain { sampler, current: PathState::default() });
+                };
+                let (i, _, _) = dist.sample_discrete(rng.uniform());
+                let mut sampler = self.bootstrap_sampler(seed, d, i as u64);
+                sampler.start_iteration_with(true);
+                let current = self.evaluate(ctx, d, &mut sampler, None, init_slot, counters);
+                sampler.accept();
+                sampler.reseed(own_stream);
+                Some(SubChain { sampler, current })
+            })
+            .collect();
+        ChainUnit { index: c, rng, large_steps: vec![(0.0, 0); depths], subchains }
+    }
+
+    /// The state's MLT part: the bootstrap, the merged slot, the chains written through
+    /// `UnitState`.
+    fn part(&self, boot: &BootstrapPart, segment: u64, slot: &SlotState, units: &[ChainUnit]) -> Result<MltPart, StateError> {
+        let units = units.iter().map(|u| Ok((u.index, u.save()?))).collect::<Result<Vec<_>, StateError>>()?;
+        let (stats, count_films) = (slot.stats.clone(), slot.count_films.clone());
+        Ok(MltPart { bootstrap: boot.clone(), segment, stats, count_films, units })
+    }
+
+    fn state(
+        &self,
+        film: Accumulator,
+        counters: &Counters,
+        part: &MltPart,
+        passes_done: u64,
+        complete: bool,
+        wall: Duration,
+    ) -> Result<RenderState, StateError> {
+        Ok(RenderState {
+            passes_done,
+            unit_count: self.settings.chains,
+            film_width: film.width as u32,
+            film_height: film.height as u32,
+            film: film.into_sums(),
+            counters: counters.clone(),
+            part: encode(part)?,
+            complete,
+            interrupted: false,
+            wall_time_s: wall.as_secs_f64(),
+        })
+    }
+
+    /// The image and statistics of a film with its chains and merged slot: each depth normalised
+    /// with the large-step totals pooled in unit order and the depths' iteration counts (integers:
+    /// any merge order gives them), so the same for a render, its resumption and its merged shards.
+    fn output(&self, film: &Accumulator, units: &[ChainUnit], merged: SlotState, boot: &BootstrapPart, tally: Tally) -> RenderOutput {
+        let pixels = film.width as u64 * (film.height / self.depth_count()) as u64;
+        let large_steps = self.large_step_totals(units);
+        let iterations = self.iteration_counts(std::iter::once(&merged));
+        let bootstrap = Bootstrap { sums: &boot.sums, paths: boot.paths };
+        let (image, b_final) = self.normalised_image(film, &large_steps, &iterations, &bootstrap);
+        let mut layers = Vec::new();
+        if let Some(films) = merged.count_films.as_ref() {
+            for (d, per_s) in films.iter().enumerate() {
+                for (s, f) in per_s.iter().enumerate() {
+                    layers.push((format!("count.d{d}.s{s}t{}", d + 2 - s), f.to_image(1.0)));
+                }
+            }
+        }
+        let mut stats = merged.stats;
+        for (depth, (sum, _)) in stats.per_depth.iter_mut().zip(&large_steps) {
+            // The slot-order f64 sum would differ in its last bits between thread counts.
+            depth.large_step_target_sum = *sum;
+        }
+        let b_boot: Vec<f64> = boot.sums.iter().map(|s| s / boot.paths.max(1) as f64).collect();
+        stats.passes = tally.passes;
+        stats.segment_length = tally.segment;
+        stats.bootstrap_paths_per_depth = boot.paths;
+        stats.bootstrap_seconds = boot.seconds;
+        stats.warnings = boot.warnings.clone();
+        stats.finish(pixels, &b_boot, &b_final);
+        let mut counters = tally.counters;
+        let strategy = |m: &MoveStats| AcceptanceCount { proposed: m.proposals, accepted: m.accepted as f64 };
+        counters.strategies.insert("large_step".to_string(), strategy(&stats.moves.large));
+        counters.strategies.insert("small_step".to_string(), strategy(&stats.moves.small));
+        if let Some(jump) = stats.moves.jump.as_ref() {
+            counters.strategies.insert("technique_jump".to_string(), strategy(jump));
+        }
+        RenderOutput {
+            image,
+            layers,
+            counters,
+            wall_time: tally.wall,
+            extra_stats: serde_json::to_value(&stats).unwrap_or(serde_json::Value::Null),
+        }
+    }
+}
+
+/// Adds a slot's statistics and count layers to `merged` (slot order).
+fn merge_slot(merged: &mut SlotState, other: &SlotState) {
+    if let (Some(m), Some(o)) = (merged.count_films.as_mut(), other.count_films.as_ref()) {
+        for (a, b) in m.iter_mut().flatten().zip(o.iter().flatten()) {
+            a.merge(b);
+        }
+    }
+    merged.stats.merge(&other.stats);
+}
