@@ -6,10 +6,13 @@ mod bench;
 mod compare;
 mod converge;
 mod info;
+mod merge;
 mod outputs;
 mod progress;
 mod reference;
 mod render;
+mod resume;
+mod state_io;
 mod stats_json;
 
 use clap::{Parser, Subcommand};
@@ -37,6 +40,10 @@ enum Commands {
     Compare(compare::CompareArgs),
     /// Error against a reference vs render time for several integrators, budgets and seeds.
     Converge(converge::ConvergeArgs),
+    /// Continue a checkpointed or interrupted render from its state file (.pxstate).
+    Resume(resume::ResumeArgs),
+    /// Combine the shards of a render (`render --shard K/N`) into its image.
+    Merge(merge::MergeArgs),
     /// Render a reference image (long, seeded, optionally at a reduced resolution).
     Reference(reference::ReferenceArgs),
     /// Accelerator throughput (Embree, the in-house BVH, a bare Embree loop, the path tracer) on a
@@ -92,6 +99,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Commands::Compare(args) => compare::run_compare(&args),
         Commands::Converge(args) => converge::run_converge(&args),
         Commands::Reference(args) => reference::run_reference(&args),
+        Commands::Resume(args) => resume::run(args),
+        Commands::Merge(args) => merge::run(args),
         Commands::Bench(args) => bench::run_bench(&args),
     }
 }
@@ -103,9 +112,19 @@ fn exit_code(e: &anyhow::Error) -> i32 {
         if cause.is::<BadInput>() || cause.is::<plexus::scene::SceneError>() {
             return EXIT_BAD_INPUT;
         }
+        if let Some(e) = cause.downcast_ref::<plexus::state::StateError>() {
+            use plexus::state::StateError;
+            return match e {
+                StateError::Write { .. } | StateError::Encode(_) => EXIT_RUNTIME,
+                _ => EXIT_BAD_INPUT,
+            };
+        }
         if let Some(r) = cause.downcast_ref::<RenderError>() {
             return match r {
                 RenderError::ThreadPool(_) => EXIT_RUNTIME,
+                RenderError::State(plexus::state::StateError::Write { .. } | plexus::state::StateError::Encode(_)) => {
+                    EXIT_RUNTIME
+                }
                 _ => EXIT_BAD_INPUT,
             };
         }
@@ -147,6 +166,10 @@ pub fn main() -> i32 {
     match std::panic::catch_unwind(|| run(cli)) {
         Ok(Ok(())) => 0,
         Ok(Err(e)) => {
+            if let Some(i) = e.downcast_ref::<state_io::Interrupted>() {
+                eprintln!("{i}");
+                return plexus::interrupt::EXIT_INTERRUPTED;
+            }
             print_error(&e);
             exit_code(&e)
         }

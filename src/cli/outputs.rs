@@ -31,3 +31,29 @@ fn check_stats_path(path: &Path) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// Checks the state files a render will write (`--checkpoint`, `.pxstate` outputs): the same
+/// directory and name checks as images, before any work.
+pub fn check_state_paths(paths: &[PathBuf]) -> anyhow::Result<()> {
+    for path in paths {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if path.is_dir() || path.as_os_str().to_string_lossy().ends_with('/') {
+            return Err(bad_input(format!("cannot write the state file '{}': it is a directory", path.display())));
+        }
+        if !dir.is_dir() {
+            return Err(bad_input(format!(
+                "cannot write the state file '{}': the directory '{}' does not exist",
+                path.display(),
+                dir.display()
+            )));
+        }
+        tempfile::Builder::new()
+            .prefix(".plexus-check-")
+            .tempfile_in(dir)
+            .map_err(|e| bad_input(format!("cannot write the state file '{}': {e}", path.display())))?;
+    }
+    Ok(())
+}

@@ -102,7 +102,7 @@ pub fn run_reference(args: &ReferenceArgs) -> anyhow::Result<()> {
         threads,
         loaded.scene.accel.kind().to_string(),
         load_time,
-        loaded.scene.features(),
+        Some(loaded.scene.features()),
         &output,
         vec![args.out.clone()],
     );

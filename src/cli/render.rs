@@ -8,14 +8,15 @@ use std::time::Instant;
 use clap::Args;
 
 use plexus::accel::AccelKind;
-use plexus::film::oiio::{write_image, WriteOptions};
 use plexus::integrator::{self, Budget, RenderJob, INTEGRATOR_NAMES};
 use plexus::scene::{builtin_cornell_box, load_scene, LoadedScene};
+use plexus::state::{Session, Shard, StateFile};
 
 use super::bad_input;
 use super::outputs::check_outputs;
 use super::progress::{bar_wanted, BarProgress, Previews};
-use super::stats_json::{self, RenderStats};
+use super::state_io::{self, is_state_path};
+use super::stats_json::RenderStats;
 
 /// Samples per pixel when neither the command line nor the scene gives a budget.
 pub const DEFAULT_SPP: u64 = 64;
@@ -56,6 +57,21 @@ pub struct RenderArgs {
     /// (between passes), so a long render can be watched.
     #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     pub preview_every: Option<f64>,
+    /// Save the render's state to FILE (.pxstate) when it ends or is interrupted, and every
+    /// --checkpoint-every seconds; continue it with `plexus resume FILE`.
+    #[arg(long, value_name = "FILE.pxstate")]
+    pub checkpoint: Option<PathBuf>,
+    /// With --checkpoint: also save at the first pass boundary after every SECONDS seconds.
+    #[arg(long, value_name = "SECONDS", requires = "checkpoint", allow_negative_numbers = true)]
+    pub checkpoint_every: Option<f64>,
+    /// Render only the K-th (0-based) of N disjoint sets of work units (passes for pt, bdpt and
+    /// light; chains for the MLT family) into --out SHARD.pxstate; `plexus merge` combines them.
+    /// Sample budgets only.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<Shard>,
+    /// Testing hook: stop as an interrupt would when the schedule reaches pass N.
+    #[arg(long, value_name = "N", hide = true)]
+    pub stop_at_pass: Option<u64>,
 }
 
 /// Everything resolved from the arguments and the scene before rendering.
@@ -104,12 +120,78 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     )?;
 
     // Every output is checked before any work, so a typo costs nothing.
+    let (states, images): (Vec<PathBuf>, Vec<PathBuf>) = plan.outputs.iter().cloned().partition(|p| is_state_path(p));
+    let mut state_paths = states.clone();
+    if let Some(shard) = args.shard {
+        if matches!(plan.budget, Budget::Seconds(_)) {
+            return Err(bad_input(
+                "--shard needs a sample budget (--spp): a time budget would make shards overlap or miss work",
+            ));
+        }
+        if states.is_empty() || !images.is_empty() {
+            return Err(bad_input(format!(
+                "--shard {shard} writes a state file, not images: give --out SHARD.pxstate"
+            )));
+        }
+        if args.checkpoint.is_some() {
+            return Err(bad_input(
+                "--shard and --checkpoint: a shard is not checkpointed (render it again if it fails)",
+            ));
+        }
+    }
+    if let Some(path) = &args.checkpoint {
+        if !is_state_path(path) {
+            return Err(bad_input(format!("--checkpoint {}: a checkpoint is a .pxstate file", path.display())));
+        }
+        state_paths.push(path.clone());
+    }
+    let checkpoint_every = match args.checkpoint_every {
+        Some(s) => {
+            Some(std::time::Duration::try_from_secs_f64(s).ok().filter(|d| !d.is_zero()).ok_or_else(|| {
+                bad_input(format!("--checkpoint-every must be a positive number of seconds, got {s}"))
+            })?)
+        }
+        None => None,
+    };
     let camera = &loaded.scene.camera;
-    check_outputs(&plan.outputs, camera.width as usize, camera.height as usize)?;
+    check_outputs(&images, camera.width as usize, camera.height as usize)?;
+    super::outputs::check_state_paths(&state_paths)?;
+    let scene_id = state_io::scene_identity(args.scene.as_deref())?;
     let load_time = load_start.elapsed().as_secs_f64();
 
     let scene = &loaded.scene;
     let job = RenderJob { budget: plan.budget, seed: plan.seed, threads: plan.threads };
+    let header = state_io::header(
+        scene_id,
+        scene.accel.kind().to_string(),
+        integrator.as_ref(),
+        &plan.params,
+        &job,
+        (camera.width, camera.height),
+        args.shard,
+        &images,
+    );
+    // Without --checkpoint an interrupted render still saves its state, beside its first image.
+    let interrupt_state = images.first().map(|p| p.with_extension(state_io::STATE_EXTENSION));
+    let checkpoint_path = args.checkpoint.clone();
+    let write_checkpoint = |state: plexus::state::RenderState| {
+        if let Some(path) = &checkpoint_path {
+            if let Err(e) = (StateFile { header: header.clone(), state }).write(path) {
+                eprintln!("warning: checkpoint not written: {e}");
+            }
+        }
+    };
+    plexus::interrupt::install().map_err(|e| anyhow::anyhow!("cannot install the interrupt handler: {e}"))?;
+    let session = Session {
+        control: integrator::driver::RunControl {
+            stop: Some(plexus::interrupt::stop_flag()),
+            stop_at_pass: args.stop_at_pass,
+            checkpoint_every,
+        },
+        checkpoint: checkpoint_every.is_some().then_some(&write_checkpoint as &dyn Fn(plexus::state::RenderState)),
+        resume: None,
+        shard: args.shard,
+    };
     let progress = BarProgress::new(
         match plan.budget {
             Budget::Seconds(s) => Some(s),
@@ -117,27 +199,23 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         },
         bar_wanted(),
     )
-    .with_previews(args.preview_every.map(|every_seconds| Previews { every_seconds, outputs: plan.outputs.clone() }));
-    let output = integrator.render(scene, &job, &progress);
+    .with_previews(args.preview_every.map(|every_seconds| Previews { every_seconds, outputs: images.clone() }));
+    let rendered = integrator.render_session(scene, &job, &progress, &session);
     progress.finish();
-    let output = output?;
-
-    for path in &plan.outputs {
-        write_image(path, &output.image, &WriteOptions::default())?;
-        // Extra layers (e.g. BDPT's per-technique images) go beside each EXR output as
-        // `<stem>.<layer>.exr`.
-        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
-            let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-            for (name, layer) in &output.layers {
-                write_image(&path.with_file_name(format!("{stem}.{name}.exr")), layer, &WriteOptions::default())?;
-            }
-        }
+    let rendered = rendered?;
+    let file = StateFile { header, state: rendered.state };
+    if file.state.interrupted && state_paths.is_empty() {
+        state_paths.extend(interrupt_state);
     }
+    let output = rendered.output;
+
+    state_io::write_images(&images, &output)?;
+    state_io::write_states(&state_paths, &file)?;
     let scene_name = match &args.scene {
         Some(p) => p.display().to_string(),
-        None => "<built-in cornell-box>".to_string(),
+        None => state_io::BUILTIN_SCENE.to_string(),
     };
-    let stats = RenderStats::new(
+    let mut stats = RenderStats::new(
         scene_name,
         integrator.name().to_string(),
         integrator.settings_json(),
@@ -146,30 +224,14 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         plan.threads,
         scene.accel.kind().to_string(),
         load_time,
-        scene.features(),
+        Some(scene.features()),
         &output,
-        plan.outputs.clone(),
+        images.clone(),
     );
-    let stats_files = stats_json::stats_paths(&plan.outputs);
-    for path in &stats_files {
-        stats_json::write(path, &stats)?;
-    }
-    let dropped = if stats.counters.nonfinite_dropped > 0 {
-        format!(", {} non-finite contributions dropped", stats.counters.nonfinite_dropped)
-    } else {
-        String::new()
-    };
-    let written: Vec<String> = plan.outputs.iter().chain(&stats_files).map(|p| p.display().to_string()).collect();
-    eprintln!(
-        "{}: {} samples in {:.2} s ({:.2} M rays/s, {} threads{dropped}) -> {}",
-        stats.integrator,
-        stats.samples,
-        stats.wall_time_s,
-        stats.rays_per_s * 1e-6,
-        stats.threads,
-        written.join(", ")
-    );
-    Ok(())
+    stats.run = state_io::run_info(&file, &state_paths, None, 0);
+    let stats_files = state_io::write_stats(&images, &state_paths, &stats)?;
+    let written: Vec<PathBuf> = images.iter().chain(&state_paths).chain(&stats_files).cloned().collect();
+    state_io::finish(&stats, &written, &file, &state_paths)
 }
 
 /// Merges the command line over the scene's render settings.

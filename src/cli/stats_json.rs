@@ -36,14 +36,18 @@ pub struct RenderStats {
     pub samples_per_s: f64,
     /// All counters, including contributions dropped as non-finite and per-strategy acceptance.
     pub counters: Counters,
-    /// Which optional scene machinery was built (environment distribution, portals, lights by kind).
-    pub scene_features: SceneFeatures,
+    /// Which optional scene machinery was built (environment distribution, portals, lights by kind);
+    /// null for a merge of shards, which loads no scene.
+    pub scene_features: Option<SceneFeatures>,
     /// Integrator-specific statistics.
     pub integrator_stats: serde_json::Value,
     /// Per-channel mean of the image.
     pub image_mean: [f64; 3],
     /// The images this render wrote.
     pub outputs: Vec<PathBuf>,
+    /// How the render ran (`cli::state_io::run_info`): interrupted or complete, the budget spent,
+    /// the state file, a shard's units, the run it resumed.
+    pub run: serde_json::Value,
 }
 
 impl RenderStats {
@@ -58,7 +62,7 @@ impl RenderStats {
         threads: usize,
         accel: String,
         load_time_s: f64,
-        features: SceneFeatures,
+        features: Option<SceneFeatures>,
         output: &RenderOutput,
         outputs: Vec<PathBuf>,
     ) -> RenderStats {
@@ -86,6 +90,7 @@ impl RenderStats {
             integrator_stats: output.extra_stats.clone(),
             image_mean: output.image.mean(),
             outputs,
+            run: serde_json::Value::Null,
         }
     }
 }

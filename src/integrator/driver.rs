@@ -68,8 +68,8 @@ use rayon::{ThreadPool, ThreadPoolBuilder};
 
 use super::{Budget, Progress, RenderError, RenderJob, RenderOutput};
 use crate::film::{Accumulator, Image, SplatBuffer};
-use crate::state::{RenderState, Session, StateError};
 use crate::sampling::Rng;
+use crate::state::{RenderState, Session, StateError};
 use crate::stats::Counters;
 
 /// Side length in pixels of the square tiles image-space integrators split the film into.
@@ -347,7 +347,16 @@ impl Driver {
         S: Send + Sync,
         K: Fn(&WorkItem, &mut U, &mut Slot<S>) -> u64 + Sync,
     {
-        self.run_from(RunStart::fresh(units), passes, progress, init_slot, kernel, snapshot, RunControl::default(), None)
+        self.run_from(
+            RunStart::fresh(units),
+            passes,
+            progress,
+            init_slot,
+            kernel,
+            snapshot,
+            RunControl::default(),
+            None,
+        )
     }
 
     /// [`Driver::run`] from `start` (a resumed render, or a shard's set of passes), under
@@ -560,7 +569,14 @@ impl ImagePlan {
     /// The plan that continues a render after `base_passes` passes of `spp_per_pass` samples per
     /// pixel (`base_spp` in all) with `budget`: for a sample budget the render's new total, for
     /// a time budget the time this run may take.
-    pub fn resumed(width: u32, height: u32, budget: Budget, spp_per_pass: u64, base_passes: u64, base_spp: u64) -> Self {
+    pub fn resumed(
+        width: u32,
+        height: u32,
+        budget: Budget,
+        spp_per_pass: u64,
+        base_passes: u64,
+        base_spp: u64,
+    ) -> Self {
         let mut tiles = Vec::new();
         for y0 in (0..height).step_by(TILE_SIZE as usize) {
             for x0 in (0..width).step_by(TILE_SIZE as usize) {
@@ -628,7 +644,9 @@ impl ImagePart {
                 None => merged = Some(part),
                 Some(m) if m.spp_per_pass == part.spp_per_pass => m.spp_done += part.spp_done,
                 Some(_) => {
-                    return Err(StateError::Mismatch("the shards' passes take different samples per pixel".into()).into())
+                    return Err(
+                        StateError::Mismatch("the shards' passes take different samples per pixel".into()).into()
+                    )
                 }
             }
         }
@@ -730,8 +748,12 @@ impl<'a> ImageRender<'a> {
     pub fn with_session(mut self, session: Session<'a>) -> Result<Self, RenderError> {
         let (width, height) = (self.driver.width as u32, self.driver.height as u32);
         if let Some(state) = session.resume {
-            if (state.film_width, state.film_height) != (width, height) || state.unit_count != self.plan.tiles.len() as u64 {
-                return Err(StateError::Mismatch("the checkpoint's film does not match the scene's resolution".into()).into());
+            if (state.film_width, state.film_height) != (width, height)
+                || state.unit_count != self.plan.tiles.len() as u64
+            {
+                return Err(
+                    StateError::Mismatch("the checkpoint's film does not match the scene's resolution".into()).into()
+                );
             }
             let part: ImagePart = crate::state::decode(&state.part)?;
             let budget = match self.plan.total_spp {
@@ -845,7 +867,9 @@ impl<'a> ImageRender<'a> {
         let spp = plan.spp_in_set(set, out.passes);
         let scale = if spp > 0 { 1.0 / spp as f64 } else { 0.0 };
         let wall_time = self.driver.clock().now().saturating_sub(self.started);
-        let state = (resume.is_some() || self.session.shard.is_some() || self.session.checkpoint.is_some()
+        let state = (resume.is_some()
+            || self.session.shard.is_some()
+            || self.session.checkpoint.is_some()
             || !self.session.control.is_inert())
         .then(|| {
             let mut state = self.state_at(out.passes, &out.film, out.counters.clone(), wall_time);

@@ -15,10 +15,10 @@ use serde::{Deserialize, Serialize};
 use super::bdpt::connect::connect_to_camera;
 use super::bdpt::{generate_light_subpath, BdptContext, MisHeuristic, Vertex};
 use super::driver::{ImagePart, ImageRender, ImageRun};
-use crate::state::{RenderState, Session, SessionOutput};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
+use crate::state::{RenderState, Session, SessionOutput};
 
 /// Settings of `integrator = "light"`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

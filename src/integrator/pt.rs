@@ -17,13 +17,13 @@ use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 use super::driver::{ImagePart, ImageRender, ImageRun};
-use crate::state::{RenderState, Session, SessionOutput};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::geometry::Ray;
 use crate::material::TransportMode;
 use crate::sampling::Rng;
 use crate::scene::Scene;
 use crate::spectrum::{is_finite, Rgb};
+use crate::state::{RenderState, Session, SessionOutput};
 use crate::stats::Counters;
 
 /// How the two direct-lighting techniques are combined.

@@ -44,7 +44,10 @@ pub fn merge_states(
             return mismatch(format!("{y} is a whole render, not a shard: its units overlap every shard's"));
         };
         if a.shard.is_some_and(|s| s.count != shard.count) {
-            return mismatch(format!("{x} and {y} split the render differently (shards {} and {shard})", a.shard.map_or(String::new(), |s| s.to_string())));
+            return mismatch(format!(
+                "{x} and {y} split the render differently (shards {} and {shard})",
+                a.shard.map_or(String::new(), |s| s.to_string())
+            ));
         }
         if !file.state.complete {
             return mismatch(format!("{y} is an interrupted shard: render it again before merging"));

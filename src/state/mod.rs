@@ -97,6 +97,8 @@ pub struct StateHeader {
     pub height: u32,
     /// Which units a shard covers; `None` for a whole render.
     pub shard: Option<Shard>,
+    /// The images the render writes (absolute), where `plexus resume` writes them by default.
+    pub outputs: Vec<PathBuf>,
 }
 
 /// What a render has done at a pass boundary: everything its continuation depends on.
@@ -242,7 +244,9 @@ impl StateFile {
             )));
         }
         if h.shard.is_some() {
-            return Err(StateError::Mismatch(format!("{name} is a shard: shards are merged (plexus merge), not resumed")));
+            return Err(StateError::Mismatch(format!(
+                "{name} is a shard: shards are merged (plexus merge), not resumed"
+            )));
         }
         Ok(())
     }

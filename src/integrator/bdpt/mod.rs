@@ -34,12 +34,12 @@ pub use subpath::{
 pub use vertex::{Vertex, VertexKind};
 
 use super::driver::{ImagePart, ImageRender, ImageRun};
-use crate::state::{RenderState, Session, SessionOutput};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::film::{Accumulator, SplatBuffer};
 use crate::sampling::{Rng, UniformSource};
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
+use crate::state::{RenderState, Session, SessionOutput};
 use crate::stats::Counters;
 
 /// What subpath generation and technique evaluation need besides the subpaths: the scene and the

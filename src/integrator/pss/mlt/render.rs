@@ -109,7 +109,9 @@ impl Integrator for Mlt {
         let mut merged = merged.ok_or_else(|| StateError::Mismatch("no shard".into()))?;
         merged.units.sort_by_key(|(index, _)| *index);
         if let Some(pair) = merged.units.windows(2).find(|pair| pair[0].0 == pair[1].0) {
-            return Err(StateError::Mismatch(format!("chain {} is in two shards: their units overlap", pair[0].0)).into());
+            return Err(
+                StateError::Mismatch(format!("chain {} is in two shards: their units overlap", pair[0].0)).into()
+            );
         }
         Ok(encode(&merged)?)
     }
@@ -164,7 +166,9 @@ impl Mlt {
                 if (state.film_width, state.film_height) != (width as u32, stacked_height)
                     || state.unit_count != self.settings.chains
                 {
-                    return Err(StateError::Mismatch("the checkpoint's film or chains do not match the scene".into()).into());
+                    return Err(
+                        StateError::Mismatch("the checkpoint's film or chains do not match the scene".into()).into()
+                    );
                 }
                 let part: MltPart = decode(&state.part)?;
                 let units =
@@ -192,8 +196,9 @@ impl Mlt {
                 };
                 let chains = (0..self.settings.chains).filter(|c| shard.is_none_or(|s| s.contains(*c)));
                 let mut init_slot = self.new_slot(0, 0);
-                let units: Vec<ChainUnit> =
-                    chains.map(|c| self.start_chain(c, &dists, &ctx, job.seed, &mut init_slot, &mut counters_before)).collect();
+                let units: Vec<ChainUnit> = chains
+                    .map(|c| self.start_chain(c, &dists, &ctx, job.seed, &mut init_slot, &mut counters_before))
+                    .collect();
                 (boot, units, None, None, 0, 0.0)
             }
         };
@@ -232,7 +237,9 @@ impl Mlt {
             }
             let part = self.part(&boot, segment, &merged, at.units);
             let wall = render_start.elapsed() + Duration::try_from_secs_f64(earlier).unwrap_or_default();
-            match part.and_then(|part| self.state(at.film.clone(), &counters, &part, at.passes_done, complete_at(at.passes_done), wall)) {
+            match part.and_then(|part| {
+                self.state(at.film.clone(), &counters, &part, at.passes_done, complete_at(at.passes_done), wall)
+            }) {
                 Ok(state) => sink(state),
                 Err(e) => progress.message(&format!("checkpoint not written: {e}")),
             }
@@ -283,14 +290,16 @@ impl Mlt {
         let mut counters = out.counters;
         counters.merge(&counters_before);
         let wall = render_start.elapsed() + Duration::try_from_secs_f64(earlier).unwrap_or_default();
-        let boot_for_state = BootstrapPart { seconds: if shard.is_some() { 0.0 } else { boot.seconds }, ..boot.clone() };
+        let boot_for_state =
+            BootstrapPart { seconds: if shard.is_some() { 0.0 } else { boot.seconds }, ..boot.clone() };
         let part = save.then(|| self.part(&boot_for_state, segment, &merged, &out.units)).transpose()?;
         let tally = Tally { passes: out.passes, segment, counters, wall };
         let output = self.output(&out.film, &out.units, merged, &boot, tally);
         let (film, state) = match part {
             Some(part) => {
                 let wall = if shard.is_some() { Duration::ZERO } else { output.wall_time };
-                let mut state = self.state(out.film, &output.counters, &part, out.passes, complete_at(out.passes), wall)?;
+                let mut state =
+                    self.state(out.film, &output.counters, &part, out.passes, complete_at(out.passes), wall)?;
                 state.interrupted = out.stopped;
                 (Accumulator::new(0, 0), Some(state))
             }
@@ -426,7 +435,13 @@ impl Mlt {
 
     /// The state's MLT part: the bootstrap, the merged slot, the chains written through
     /// `UnitState`.
-    fn part(&self, boot: &BootstrapPart, segment: u64, slot: &SlotState, units: &[ChainUnit]) -> Result<MltPart, StateError> {
+    fn part(
+        &self,
+        boot: &BootstrapPart,
+        segment: u64,
+        slot: &SlotState,
+        units: &[ChainUnit],
+    ) -> Result<MltPart, StateError> {
         let units = units.iter().map(|u| Ok((u.index, u.save()?))).collect::<Result<Vec<_>, StateError>>()?;
         let (stats, count_films) = (slot.stats.clone(), slot.count_films.clone());
         Ok(MltPart { bootstrap: boot.clone(), segment, stats, count_films, units })
@@ -458,7 +473,14 @@ impl Mlt {
     /// The image and statistics of a film with its chains and merged slot: each depth normalised
     /// with the large-step totals pooled in unit order and the depths' iteration counts (integers:
     /// any merge order gives them), so the same for a render, its resumption and its merged shards.
-    fn output(&self, film: &Accumulator, units: &[ChainUnit], merged: SlotState, boot: &BootstrapPart, tally: Tally) -> RenderOutput {
+    fn output(
+        &self,
+        film: &Accumulator,
+        units: &[ChainUnit],
+        merged: SlotState,
+        boot: &BootstrapPart,
+        tally: Tally,
+    ) -> RenderOutput {
         let pixels = film.width as u64 * (film.height / self.depth_count()) as u64;
         let large_steps = self.large_step_totals(units);
         let iterations = self.iteration_counts(std::iter::once(&merged));

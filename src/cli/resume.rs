@@ -1,0 +1,157 @@
+//! `plexus resume FILE`: continue a checkpointed or interrupted render from its state file. The
+//! scene is loaded again from the path the state names and must hash the same (the scene file and
+//! every file it references); plexus version and settings must match too. The state file is
+//! updated in place (atomically) as the render goes on: at the end, on an interrupt, and every
+//! `--checkpoint-every` seconds.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+
+use plexus::integrator::{self, Budget, RenderJob};
+use plexus::scene::{builtin_cornell_box, load_scene};
+use plexus::state::{Session, StateError, StateFile};
+
+use super::bad_input;
+use super::progress::{bar_wanted, BarProgress, Previews};
+use super::state_io::{self, is_state_path};
+use super::stats_json::RenderStats;
+
+#[derive(Debug, Args)]
+pub struct ResumeArgs {
+    /// The state file (.pxstate) of a checkpoint or an interrupted render.
+    pub state: PathBuf,
+    /// The render's new total samples (mutations) per pixel. Default: the render's own budget.
+    #[arg(long, value_name = "N", conflicts_with = "time")]
+    pub spp: Option<u64>,
+    /// Render for this many more seconds instead.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub time: Option<f64>,
+    /// Output images (default: the render's own outputs).
+    #[arg(long = "out", short = 'o', value_name = "PATH")]
+    pub out: Vec<PathBuf>,
+    /// Also save the state every SECONDS seconds (at a pass boundary).
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub checkpoint_every: Option<f64>,
+    /// Write the current image every SECONDS seconds during the render.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub preview_every: Option<f64>,
+    /// Testing hook: stop as an interrupt would when the schedule reaches pass N.
+    #[arg(long, value_name = "N", hide = true)]
+    pub stop_at_pass: Option<u64>,
+}
+
+pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
+    let load_start = Instant::now();
+    let saved = StateFile::read(&args.state).map_err(bad_input)?;
+    let h = saved.header.clone();
+    let scene_path = (h.scene != state_io::BUILTIN_SCENE).then(|| PathBuf::from(&h.scene));
+    let accel = h.accel.parse().map_err(bad_input)?;
+    if let Some(path) = &scene_path {
+        if !path.is_file() {
+            return Err(bad_input(format!(
+                "{}: its scene {} is not there any more",
+                args.state.display(),
+                path.display()
+            )));
+        }
+    }
+    let (scene_name, hash) = state_io::scene_identity(scene_path.as_deref())?;
+    saved.check_resumable(&args.state, &hash).map_err(bad_input)?;
+    let params: toml::Table =
+        toml::from_str(&h.params).map_err(|e| bad_input(format!("{}: {e}", args.state.display())))?;
+    let integrator = integrator::create(&h.integrator, &params)?;
+    if integrator.settings_json().to_string() != h.settings {
+        return Err(bad_input(StateError::Mismatch(format!(
+            "{}: the {} settings it was rendered with ({}) are not what this plexus makes of them ({})",
+            args.state.display(),
+            h.integrator,
+            h.settings,
+            integrator.settings_json()
+        ))));
+    }
+    let loaded = match &scene_path {
+        Some(path) => load_scene(path, Some(accel))?,
+        None => builtin_cornell_box(Some(accel))?,
+    };
+    let camera = &loaded.scene.camera;
+    let budget = match (args.spp, args.time) {
+        (Some(n), _) => Budget::SamplesPerPixel(n),
+        (None, Some(s)) => Budget::Seconds(s),
+        // A time budget's rest, at least one pass.
+        (None, None) => match h.budget {
+            Budget::Seconds(s) => Budget::Seconds((s - saved.state.wall_time_s).max(1e-3)),
+            b => b,
+        },
+    };
+    let option = if args.spp.is_some() { "--spp" } else { "--time" };
+    super::check_render_limits(&h.integrator, &params, camera.width, camera.height, budget, option)?;
+    let checkpoint_every = match args.checkpoint_every {
+        Some(s) => {
+            Some(std::time::Duration::try_from_secs_f64(s).ok().filter(|d| !d.is_zero()).ok_or_else(|| {
+                bad_input(format!("--checkpoint-every must be a positive number of seconds, got {s}"))
+            })?)
+        }
+        None => None,
+    };
+    let images: Vec<PathBuf> = if args.out.is_empty() { h.outputs.clone() } else { args.out.clone() };
+    if images.iter().any(|p| is_state_path(p)) {
+        return Err(bad_input("resume writes its state to the file it resumes; --out takes images"));
+    }
+    super::outputs::check_outputs(&images, camera.width as usize, camera.height as usize)?;
+    let load_time = load_start.elapsed().as_secs_f64();
+
+    let job = RenderJob { budget, seed: h.seed, threads: h.threads.max(1) };
+    let header = plexus::state::StateHeader { budget, outputs: images.clone(), ..h.clone() };
+    let state_path = args.state.clone();
+    let write_checkpoint = |state: plexus::state::RenderState| {
+        if let Err(e) = (StateFile { header: header.clone(), state }).write(&state_path) {
+            eprintln!("warning: checkpoint not written: {e}");
+        }
+    };
+    plexus::interrupt::install().map_err(|e| anyhow::anyhow!("cannot install the interrupt handler: {e}"))?;
+    let session = Session {
+        control: integrator::driver::RunControl {
+            stop: Some(plexus::interrupt::stop_flag()),
+            stop_at_pass: args.stop_at_pass,
+            checkpoint_every,
+        },
+        checkpoint: checkpoint_every.is_some().then_some(&write_checkpoint as &dyn Fn(plexus::state::RenderState)),
+        resume: Some(&saved.state),
+        shard: None,
+    };
+    let progress = BarProgress::new(
+        match budget {
+            Budget::Seconds(s) => Some(s),
+            Budget::SamplesPerPixel(_) => None,
+        },
+        bar_wanted(),
+    )
+    .with_previews(args.preview_every.map(|every_seconds| Previews { every_seconds, outputs: images.clone() }));
+    let rendered = integrator.render_session(&loaded.scene, &job, &progress, &session);
+    progress.finish();
+    let rendered = rendered?;
+    let file = StateFile { header, state: rendered.state };
+    let output = rendered.output;
+    let states = vec![args.state.clone()];
+    state_io::write_images(&images, &output)?;
+    state_io::write_states(&states, &file)?;
+    let mut stats = RenderStats::new(
+        scene_name,
+        integrator.name().to_string(),
+        integrator.settings_json(),
+        budget,
+        h.seed,
+        job.threads,
+        h.accel.clone(),
+        load_time,
+        Some(loaded.scene.features()),
+        &output,
+        images.clone(),
+    );
+    stats.run = state_io::run_info(&file, &states, Some(&args.state), 0);
+    let stats_files = state_io::write_stats(&images, &states, &stats)?;
+    let written: Vec<PathBuf> = images.iter().chain(&states).chain(&stats_files).cloned().collect();
+    state_io::finish(&stats, &written, &file, &states)
+}
