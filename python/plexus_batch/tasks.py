@@ -48,7 +48,13 @@ class PlexusFailed(RuntimeError):
 def run_shard(task: ShardTask, run_id: str) -> Outcome:
     worker = _worker()
     if worker is not None:
-        worker.log_event(EVENT_TOPIC, {"run": run_id, "job": task.job, "shard": task.index, "worker": worker.address})
+        # Through the worker's client, a round trip: the event is on the scheduler before plexus
+        # starts. (Worker.log_event batches it, and a worker killed within the batching interval,
+        # which a loaded machine stretches, took it along: seen in the kill test.)
+        from distributed import get_client
+
+        msg = {"run": run_id, "job": task.job, "shard": task.index, "worker": worker.address}
+        get_client().log_event(EVENT_TOPIC, msg)
     task.state.parent.mkdir(parents=True, exist_ok=True)
     return _run(task.argv, task.label)
 
