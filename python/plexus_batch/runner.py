@@ -102,7 +102,7 @@ def run_batch(
     progress = progress or stderr_progress(t0)
     run_id = uuid.uuid4().hex[:12]
     plans = plan(batch, str(plexus))
-    workers = len(client.scheduler_info().get("workers", {}))
+    workers = len(client.nthreads())
     report = BatchReport(batch=str(batch.path), workers=workers)
     reports = {p.job.name: JobReport(name=p.job.name, shards=p.job.shards) for p in plans}
     report.jobs = list(reports.values())
