@@ -476,7 +476,8 @@ fn emitter(e: &Rc<Obj>, toml_dir: &Path, w: &mut Warnings) -> Result<Option<Sect
             let total = rot * DMat3::from_rotation_y(-std::f64::consts::FRAC_PI_2);
             let q = DQuat::from_mat3(&total);
             let (axis, angle) = q.to_axis_angle();
-            if angle.abs() > 1e-9 {
+            // Below a thousandth of a degree the rotation is rounding (the 4.4e-8 of a written cos 90°).
+            if angle.to_degrees().abs() > 1e-3 {
                 sec.set(
                     "rotate",
                     TVal::Tab(vec![

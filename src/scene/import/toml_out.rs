@@ -150,7 +150,7 @@ mod tests {
         let m = &t["materials"]["odd name"];
         assert_eq!(m["file"].as_str(), Some("a \"b\"\\c.obj"));
         assert_eq!(m["ior"].as_float(), Some(1.5));
-        assert_eq!(m["transform"]["matrix"][0][1].as_float(), Some(2e-9f32 as f64));
+        assert_eq!(m["transform"]["matrix"][0][1].as_float(), Some(2e-9));
         assert_eq!(key("a b"), "\"a b\"");
     }
 }
