@@ -5,13 +5,13 @@ use std::path::PathBuf;
 use clap::Args;
 use plexus::accel::AccelKind;
 use plexus::integrator::memory;
-use plexus::scene::{load_scene, scene_info};
+use plexus::scene::scene_info;
 
 use super::bad_input;
 
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML, or Mitsuba XML).
     pub scene: PathBuf,
     /// Accelerator to build (its memory is part of the estimate): embree or bvh.
     #[arg(long)]
@@ -22,7 +22,7 @@ pub struct InfoArgs {
 }
 
 pub fn run(args: InfoArgs) -> anyhow::Result<()> {
-    let loaded = load_scene(&args.scene, args.accel)?;
+    let loaded = super::import::load_any(&args.scene, args.accel)?;
     let info = scene_info(&loaded.scene);
     // What rendering it would allocate on top of the scene: the one estimate `render` checks.
     let (width, height) = (loaded.scene.camera.width, loaded.scene.camera.height);

@@ -5,6 +5,7 @@
 mod bench;
 mod compare;
 mod converge;
+mod import;
 mod info;
 mod merge;
 mod outputs;
@@ -50,6 +51,8 @@ enum Commands {
     /// Accelerator throughput (Embree, the in-house BVH, a bare Embree loop, the path tracer) on a
     /// generated scene of more than a million triangles; prints a Markdown table.
     Bench(bench::BenchArgs),
+    /// Convert a Mitsuba scene (0.5/0.6 or 3 XML) to a plexus TOML scene; warnings name what changed.
+    Import(import::ImportArgs),
     // Further verbs (compare, converge, bench, ...) go here, one variant each, with their
     // argument struct in their own file under src/cli/ and one arm in `run` below.
 }
@@ -103,6 +106,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Commands::Resume(args) => resume::run(args),
         Commands::Merge(args) => merge::run(args),
         Commands::Bench(args) => bench::run_bench(&args),
+        Commands::Import(args) => import::run(args),
     }
 }
 

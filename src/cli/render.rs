@@ -9,7 +9,7 @@ use clap::Args;
 
 use plexus::accel::AccelKind;
 use plexus::integrator::{self, Budget, RenderJob, INTEGRATOR_NAMES};
-use plexus::scene::{builtin_cornell_box, load_scene, LoadedScene};
+use plexus::scene::{builtin_cornell_box, LoadedScene};
 use plexus::state::{Session, Shard, StateFile};
 
 use super::bad_input;
@@ -26,7 +26,8 @@ const BUILTIN_STEM: &str = "cornell-box";
 
 #[derive(Debug, Args)]
 pub struct RenderArgs {
-    /// Scene file (TOML). Without it the built-in Cornell box is rendered.
+    /// Scene file (TOML, or Mitsuba XML imported on the fly). Without it the built-in Cornell box
+    /// is rendered.
     pub scene: Option<PathBuf>,
     /// Integrator to use (overrides the scene's [integrator] type).
     #[arg(long, value_name = "NAME", help = format!("Integrator: {}", INTEGRATOR_NAMES.join(", ")))]
@@ -98,7 +99,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
 
     let load_start = Instant::now();
     let loaded = match &args.scene {
-        Some(path) => load_scene(path, args.accel)?,
+        Some(path) => super::import::load_any(path, args.accel)?,
         None => builtin_cornell_box(args.accel)?,
     };
     let plan = resolve(&args, &loaded, &overrides)?;

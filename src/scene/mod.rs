@@ -4,6 +4,7 @@
 mod builtin;
 pub mod desc;
 mod error;
+pub mod import;
 mod info;
 mod load;
 pub mod mesh_io;

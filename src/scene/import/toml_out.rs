@@ -1,0 +1,156 @@
+//! Writing the imported scene as TOML: sections in the scene format's order (`[camera]`,
+//! `[materials.*]`, `[[shapes]]`, `[environment]`, `[integrator]`, `[render]`), with comments
+//! saying where each came from and what the import changed. Values are written inline.
+
+use std::fmt::Write;
+
+/// A TOML value.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TVal {
+    Num(f64),
+    Int(i64),
+    Bool(bool),
+    Str(String),
+    Arr(Vec<TVal>),
+    /// An inline table, keys in order.
+    Tab(Vec<(String, TVal)>),
+}
+
+impl TVal {
+    pub fn colour(c: [f64; 3]) -> TVal {
+        if c[0] == c[1] && c[1] == c[2] {
+            TVal::Num(c[0])
+        } else {
+            TVal::Arr(c.iter().map(|&v| TVal::Num(v)).collect())
+        }
+    }
+    pub fn vec3(v: [f64; 3]) -> TVal {
+        TVal::Arr(v.iter().map(|&x| TVal::Num(x)).collect())
+    }
+    pub fn str(s: impl Into<String>) -> TVal {
+        TVal::Str(s.into())
+    }
+}
+
+/// Numbers as f32 would print them: the loader reads f32, and shorter is more readable.
+fn number(v: f64) -> String {
+    let f = v as f32;
+    if f == f.trunc() && f.abs() < 1e15 {
+        format!("{f:.1}")
+    } else {
+        format!("{f:?}")
+    }
+}
+
+/// A bare key when TOML allows one, else a quoted one.
+pub fn key(k: &str) -> String {
+    if !k.is_empty() && k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+        k.to_string()
+    } else {
+        toml::Value::String(k.to_string()).to_string()
+    }
+}
+
+impl std::fmt::Display for TVal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            TVal::Num(v) => f.write_str(&number(*v)),
+            TVal::Int(v) => write!(f, "{v}"),
+            TVal::Bool(v) => write!(f, "{v}"),
+            TVal::Str(s) => write!(f, "{}", toml::Value::String(s.clone())),
+            TVal::Arr(items) => {
+                f.write_str("[")?;
+                for (i, v) in items.iter().enumerate() {
+                    if i > 0 {
+                        f.write_str(", ")?;
+                    }
+                    write!(f, "{v}")?;
+                }
+                f.write_str("]")
+            }
+            TVal::Tab(entries) => {
+                f.write_str("{ ")?;
+                for (i, (k, v)) in entries.iter().enumerate() {
+                    if i > 0 {
+                        f.write_str(", ")?;
+                    }
+                    write!(f, "{} = {v}", key(k))?;
+                }
+                f.write_str(" }")
+            }
+        }
+    }
+}
+
+/// One `[header]` or `[[header]]` section.
+#[derive(Clone, Debug, Default)]
+pub struct Section {
+    /// `camera`, `materials.white`, `shapes` (an array of tables when `array`).
+    pub header: String,
+    pub array: bool,
+    pub comments: Vec<String>,
+    pub entries: Vec<(String, TVal)>,
+}
+
+impl Section {
+    pub fn new(header: impl Into<String>) -> Section {
+        Section { header: header.into(), ..Default::default() }
+    }
+    pub fn set(&mut self, k: &str, v: TVal) {
+        match self.entries.iter_mut().find(|(key, _)| key == k) {
+            Some(slot) => slot.1 = v,
+            None => self.entries.push((k.to_string(), v)),
+        }
+    }
+    pub fn get(&self, k: &str) -> Option<&TVal> {
+        self.entries.iter().find(|(key, _)| key == k).map(|(_, v)| v)
+    }
+}
+
+/// Writes `sections` after the `preamble` comment lines.
+pub fn write(preamble: &[String], sections: &[Section]) -> String {
+    let mut out = String::new();
+    for line in preamble {
+        let _ = writeln!(out, "# {line}");
+    }
+    for s in sections {
+        out.push('\n');
+        for c in &s.comments {
+            let _ = writeln!(out, "# {c}");
+        }
+        if s.array {
+            let _ = writeln!(out, "[[{}]]", s.header);
+        } else {
+            let _ = writeln!(out, "[{}]", s.header);
+        }
+        for (k, v) in &s.entries {
+            let _ = writeln!(out, "{} = {v}", key(k));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn values_round_trip_through_toml() {
+        let mut s = Section::new("materials.\"odd name\"");
+        s.set("reflectance", TVal::colour([0.5, 0.25, 1.0]));
+        s.set("ior", TVal::Num(1.5));
+        s.set("flag", TVal::Bool(true));
+        s.set(
+            "transform",
+            TVal::Tab(vec![("matrix".into(), TVal::Arr(vec![TVal::vec3([1.0, 2e-9, 3.0]), TVal::vec3([0.0; 3])]))]),
+        );
+        s.set("file", TVal::str("a \"b\"\\c.obj"));
+        let text = write(&["imported".to_string()], &[s]);
+        let t: toml::Table = toml::from_str(&text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+        let m = &t["materials"]["odd name"];
+        assert_eq!(m["file"].as_str(), Some("a \"b\"\\c.obj"));
+        assert_eq!(m["ior"].as_float(), Some(1.5));
+        assert_eq!(m["transform"]["matrix"][0][1].as_float(), Some(2e-9));
+        assert_eq!(key("a b"), "\"a b\"");
+    }
+}

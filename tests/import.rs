@@ -1,0 +1,98 @@
+//! The seven Mitsuba scenes of ../shared/scenes (beside the repository): each imports to exactly the
+//! TOML committed in scenes/imported/ (so the committed files are what `plexus import` writes
+//! today), with the warnings committed beside it, and each committed TOML loads with the ordinary
+//! loader (every mesh and texture found through its relative paths). `plexus render SCENE.xml`
+//! renders a Mitsuba file directly.
+//!
+//! The scene data is not part of the repository: without ../shared/scenes these tests fail with a
+//! message saying so, never skip.
+
+use std::path::{Path, PathBuf};
+
+use plexus::scene::import::{import_mitsuba, ImportOptions};
+use plexus::scene::load_scene;
+
+mod common;
+use common::binary::{plexus, stderr, temp_dir};
+
+/// (name, XML file, leave out missing meshes): the list scripts/import-scenes.sh imports.
+const SCENES: &[(&str, &str, bool)] = &[
+    ("cornell-box", "cbox.xml", false),
+    ("veach-ajar", "scene_v3.xml", true),
+    ("veach-lamp", "scene.xml", false),
+    ("torus", "scene.xml", false),
+    ("staircase", "scene.xml", false),
+    ("breakfast-room", "scene.xml", false),
+    ("living-room", "scene.xml", false),
+];
+
+fn shared() -> PathBuf {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
+    assert!(
+        p.is_dir(),
+        "the Mitsuba scene data is missing: expected '{}' (shared/ beside the repository, as in CI)",
+        p.display()
+    );
+    p
+}
+
+/// Run from the repository root, as scripts/import-scenes.sh is, so that the paths written in the
+/// TOML header and warnings are the same.
+fn in_root() {
+    std::env::set_current_dir(env!("CARGO_MANIFEST_DIR")).expect("cd to the repository");
+}
+
+#[test]
+fn seven_scenes_import_to_the_committed_toml_and_load() {
+    shared();
+    in_root();
+    for &(name, xml, skip_missing) in SCENES {
+        let xml_path = PathBuf::from(format!("../shared/scenes/{name}/{xml}"));
+        let options = ImportOptions {
+            toml_dir: Some(PathBuf::from("scenes/imported")),
+            skip_missing_meshes: skip_missing,
+            ..Default::default()
+        };
+        let imported = import_mitsuba(&xml_path, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let committed_path = format!("scenes/imported/{name}.toml");
+        let committed = std::fs::read_to_string(&committed_path).unwrap_or_else(|e| panic!("{committed_path}: {e}"));
+        assert!(
+            imported.toml == committed,
+            "{committed_path} is not what the importer writes today: run scripts/import-scenes.sh"
+        );
+        let warnings = std::fs::read_to_string(format!("scenes/imported/{name}.warnings")).expect("warnings file");
+        for line in imported.warnings.lines() {
+            assert!(warnings.contains(&line), "{name}: warning not recorded in {name}.warnings: {line}");
+        }
+        let loaded = load_scene(Path::new(&committed_path), None).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(!loaded.scene.lights.is_empty() && loaded.scene.triangle_count() > 0, "{name}");
+    }
+}
+
+/// `plexus render SCENE.xml` imports on the fly, prints the warnings with file:line, and renders;
+/// `plexus import` of a scene with a missing mesh fails naming it, exit code 2.
+#[test]
+fn render_and_import_from_the_command_line() {
+    let shared = shared();
+    let dir = temp_dir("import");
+    let xml = shared.join("veach-lamp/scene.xml");
+    let out = dir.path().join("lamp.png");
+    let o = plexus(
+        &["render", xml.to_str().unwrap(), "--spp", "1", "--out", out.to_str().unwrap(), "--threads", "2"],
+        dir.path(),
+    );
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(out.is_file());
+    assert!(err.contains("scene.xml:59: <bsdf type=\"ward\" id=\"LampMaterial\"> mapped to a GGX conductor"), "{err}");
+
+    let ajar = shared.join("veach-ajar/scene_v3.xml");
+    let o = plexus(&["import", ajar.to_str().unwrap(), "--out", "ajar.toml"], dir.path());
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.starts_with("error: ") && err.contains("scene_v3.xml:251: mesh file") && err.contains("Mesh009.obj"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+}
