@@ -358,7 +358,11 @@ fn run_watched(args: &[&str], cwd: &Path) -> Option<(Option<i32>, String)> {
 }
 
 /// Checks the property for one finished run; `image` is read when it exited 0.
-fn check_outcome(outcome: Option<(Option<i32>, String)>, image: Option<&Path>, culprits: &[&str]) -> Result<(), String> {
+fn check_outcome(
+    outcome: Option<(Option<i32>, String)>,
+    image: Option<&Path>,
+    culprits: &[&str],
+) -> Result<(), String> {
     let Some((code, err)) = outcome else { return Err(format!("hung: still running after {WATCHDOG} s")) };
     if err.contains("panicked") || err.contains("RUST_BACKTRACE") {
         return Err(format!("panic: {err}"));
@@ -422,8 +426,11 @@ fn render_case(seed: u64, scenes: &[(String, Value)], dir: &Path) -> Result<(), 
         args.extend(["--spp", "1"]);
     }
     let outcome = run_watched(&args, dir);
-    check_outcome(outcome, Some(&out), &["s.toml", "integrator", "--"])
-        .map_err(|what| Failure { seed, what: format!("render of mutated {name}, args {args:?}: {what}"), input: text })
+    check_outcome(outcome, Some(&out), &["s.toml", "integrator", "--"]).map_err(|what| Failure {
+        seed,
+        what: format!("render of mutated {name}, args {args:?}: {what}"),
+        input: text,
+    })
 }
 
 /// Loads `dir/s.toml` in this process under the watchdog: a scene, or one line naming the file;
@@ -460,15 +467,37 @@ fn load_case(seed: u64, scenes: &[(String, Value)], dir: &Path) -> Result<(), Fa
 
 /// A small mesh (a cube) as OBJ, ASCII PLY and binary PLY text.
 fn mesh_files() -> Vec<(&'static str, Vec<u8>)> {
-    let v: [[f32; 3]; 8] =
-        [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.], [0., 0., 1.], [1., 0., 1.], [1., 1., 1.], [0., 1., 1.]];
+    let v: [[f32; 3]; 8] = [
+        [0., 0., 0.],
+        [1., 0., 0.],
+        [1., 1., 0.],
+        [0., 1., 0.],
+        [0., 0., 1.],
+        [1., 0., 1.],
+        [1., 1., 1.],
+        [0., 1., 1.],
+    ];
     let f: [[u32; 4]; 6] = [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [2, 3, 7, 6], [1, 2, 6, 5], [0, 4, 7, 3]];
     let mut obj = String::from("# cube\n");
     for p in v {
         obj += &format!("v {} {} {}\nvn 0 0 1\nvt 0.5 0.5\n", p[0], p[1], p[2]);
     }
     for q in f {
-        obj += &format!("f {}/{}/{} {}/{}/{} {}/{}/{} {}/{}/{}\n", q[0] + 1, q[0] + 1, q[0] + 1, q[1] + 1, q[1] + 1, q[1] + 1, q[2] + 1, q[2] + 1, q[2] + 1, q[3] + 1, q[3] + 1, q[3] + 1);
+        obj += &format!(
+            "f {}/{}/{} {}/{}/{} {}/{}/{} {}/{}/{}\n",
+            q[0] + 1,
+            q[0] + 1,
+            q[0] + 1,
+            q[1] + 1,
+            q[1] + 1,
+            q[1] + 1,
+            q[2] + 1,
+            q[2] + 1,
+            q[2] + 1,
+            q[3] + 1,
+            q[3] + 1,
+            q[3] + 1
+        );
     }
     let header = |format: &str| {
         format!(

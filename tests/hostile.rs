@@ -250,7 +250,9 @@ fn write_exr(path: &Path, w: usize, h: usize, value: f32) {
 fn radiance_beyond_the_bound_is_refused_naming_the_key_or_file() {
     let tmp = temp_dir("radiance");
     let dir = tmp.path();
-    let args = |scene: &str| vec!["render".to_string(), scene.to_string(), "--spp".into(), "1".into(), "--out".into(), "o.exr".into()];
+    let args = |scene: &str| {
+        vec!["render".to_string(), scene.to_string(), "--spp".into(), "1".into(), "--out".into(), "o.exr".into()]
+    };
     let run = |scene: &str, needles: &[&str], kept: &[&str]| {
         let a = args(scene);
         let a: Vec<&str> = a.iter().map(String::as_str).collect();
@@ -324,6 +326,7 @@ fn a_black_render_says_so_on_stderr_for_every_integrator() {
         assert!(warnings[0].contains("black"), "{integrator}: {err}");
     }
     // The lit scene renders without a warning.
-    let o = plexus(&["render", &write(dir, "lit.toml", &tiny_scene("[8, 6]", "")), "--spp", "1", "--out", "o.exr"], dir);
+    let o =
+        plexus(&["render", &write(dir, "lit.toml", &tiny_scene("[8, 6]", "")), "--spp", "1", "--out", "o.exr"], dir);
     assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
 }

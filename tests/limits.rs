@@ -124,5 +124,29 @@ fn info_prints_the_render_memory_estimate() {
     let o = plexus(&["info", "scene.toml"], dir.path());
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(out.contains("render:      212992.00 MiB for pt at 65536x65536"), "{out}");
+    assert!(out.contains("render:      212992.00 MiB for pt at 65536x65536 (scene 0.00, film"), "{out}");
+}
+
+/// The estimate counts the scene (meshes, accelerator, lights, textures) with the render's
+/// buffers: a sphere of 2^16 triangles shows in `info --json` and in the total the refusal checks.
+/// Fails on the old code (94429d5), whose render estimate had no scene part.
+#[test]
+fn the_estimate_counts_the_scene_meshes_and_accelerator() {
+    let dir = temp_dir("info-scene");
+    let sphere = "[[shapes]]\ntype = \"sphere\"\nsubdivisions = 128\nmaterial = \"floor\"\n";
+    write_scene(dir.path(), "[4, 4]", sphere);
+    for accel in ["embree", "bvh"] {
+        let o = plexus(&["info", "scene.toml", "--json", "--accel", accel], dir.path());
+        assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+        let m = &v["render_memory"];
+        let part = |k: &str| m["scene"][k].as_u64().unwrap_or_else(|| panic!("scene.{k} in {m}"));
+        // 128 rings × 256 segments × 2 triangles: 12 bytes of indices each, plus the vertices.
+        assert!(part("meshes") > 65536 * 12, "{accel}: {m}");
+        assert!(part("accel") > 0, "{accel}: {m}");
+        assert_eq!(part("textures"), 0, "{accel}: {m}");
+        let scene = part("meshes") + part("accel") + part("lights") + part("textures");
+        let render = ["film", "pass_buffers", "chains"].iter().map(|k| m[k].as_u64().expect("part")).sum::<u64>();
+        assert_eq!(m["total"].as_u64(), Some(scene + render), "{accel}: {m}");
+    }
 }

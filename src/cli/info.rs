@@ -27,9 +27,11 @@ pub fn run(args: InfoArgs) -> anyhow::Result<()> {
     // What rendering it would allocate on top of the scene: the one estimate `render` checks.
     let (width, height) = (loaded.scene.camera.width, loaded.scene.camera.height);
     let render = &loaded.render;
-    let needed =
-        memory::render_memory(&render.integrator, &render.integrator_params, width, height).map_err(bad_input)?;
-    let available = memory::available_memory();
+    let scene = loaded.scene.memory();
+    let needed = memory::render_memory(&render.integrator, &render.integrator_params, width, height)
+        .map_err(bad_input)?
+        .with_scene(scene);
+    let available = memory::available_memory(scene.total());
     if args.json {
         let mut value = serde_json::to_value(&info)?;
         if let Some(map) = value.as_object_mut() {
@@ -37,6 +39,7 @@ pub fn run(args: InfoArgs) -> anyhow::Result<()> {
                 "render_memory".to_string(),
                 serde_json::json!({
                     "integrator": render.integrator,
+                    "scene": needed.scene,
                     "film": needed.film,
                     "pass_buffers": needed.pass_buffers,
                     "chains": needed.chains,
@@ -56,9 +59,10 @@ pub fn run(args: InfoArgs) -> anyhow::Result<()> {
         let mib = |bytes: u64| bytes as f64 / (1u64 << 20) as f64;
         let available = available.map_or_else(|| "unknown".to_string(), |a| format!("{:.2} MiB", mib(a)));
         println!(
-            "render:      {:.2} MiB for {} at {width}x{height} (film {:.2}, pass buffers {:.2}, chains {:.2}); available {available}",
+            "render:      {:.2} MiB for {} at {width}x{height} (scene {:.2}, film {:.2}, pass buffers {:.2}, chains {:.2}); available {available}",
             mib(needed.total()),
             render.integrator,
+            mib(needed.scene.total()),
             mib(needed.film),
             mib(needed.pass_buffers),
             mib(needed.chains),

@@ -83,6 +83,7 @@ pub fn resolve_threads(explicit: Option<usize>, option: &str) -> anyhow::Result<
 /// its source) and the memory of its film, pass buffers and chains against what the process may
 /// allocate (`plexus::integrator::memory`).
 pub fn check_render_limits(
+    scene: &plexus::scene::Scene,
     integrator: &str,
     params: &toml::Table,
     width: u32,
@@ -92,8 +93,9 @@ pub fn check_render_limits(
 ) -> anyhow::Result<()> {
     use plexus::integrator::{check_budget, memory};
     check_budget(budget, width, height, budget_option).map_err(bad_input)?;
-    let needed = memory::render_memory(integrator, params, width, height).map_err(bad_input)?;
-    memory::check_fits(&needed, width, height, memory::available_memory()).map_err(bad_input)
+    let scene = scene.memory();
+    let needed = memory::render_memory(integrator, params, width, height).map_err(bad_input)?.with_scene(scene);
+    memory::check_fits(&needed, width, height, memory::available_memory(scene.total())).map_err(bad_input)
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {

@@ -75,7 +75,15 @@ pub fn run_reference(args: &ReferenceArgs) -> anyhow::Result<()> {
     let integ = integrator::create(&args.integrator, &params)?;
     let camera = &loaded.scene.camera;
     let budget_option = if args.spp.is_some() { "--spp" } else { "--time" };
-    super::check_render_limits(&args.integrator, &params, camera.width, camera.height, budget, budget_option)?;
+    super::check_render_limits(
+        &loaded.scene,
+        &args.integrator,
+        &params,
+        camera.width,
+        camera.height,
+        budget,
+        budget_option,
+    )?;
     let load_time = load_start.elapsed().as_secs_f64();
 
     let job = RenderJob { budget, seed: args.seed, threads };

@@ -112,6 +112,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         (None, None, Budget::Seconds(_)) => "render.time",
     };
     super::check_render_limits(
+        &loaded.scene,
         &plan.integrator,
         &plan.params,
         camera.width,

@@ -46,7 +46,8 @@ fn check_declared_size(path: &Path, size: u64) -> Result<(), ExrReadError> {
     for header in meta.headers.iter() {
         let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
         let bytes = w.saturating_mul(h).saturating_mul(header.channels.bytes_per_pixel as u64);
-        let expansion = if header.compression == exr::compression::Compression::Uncompressed { 1 } else { MAX_EXPANSION };
+        let expansion =
+            if header.compression == exr::compression::Compression::Uncompressed { 1 } else { MAX_EXPANSION };
         if bytes > size.saturating_mul(expansion) {
             return Err(ExrReadError::Truncated { path: path.to_path_buf(), width: w, height: h, bytes, size });
         }

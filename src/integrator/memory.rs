@@ -1,15 +1,23 @@
-//! The memory a render needs before it starts, and the memory the process may use: one estimate,
-//! computed with checked arithmetic, so that a film or a Markov chain setup that would not fit is
-//! refused with its size instead of aborting on allocation (issue 19).
+//! The memory a render needs, and the memory the process may use: one estimate, computed with
+//! checked arithmetic, so that a scene, film or Markov chain setup that would not fit is refused
+//! with its size instead of aborting on allocation (issue 19). `plexus info` prints the same
+//! estimate.
 //!
-//! What is counted are the buffers that grow with the budget's dimensions (see `driver`'s render
-//! model): the film's unnormalised sums (3 × f64 per pixel; MLT stacks one W × H layer per path
-//! depth), the normalised output image (3 × f32 per pixel), one pass of splat buffers (16 bytes a
-//! contribution, at least one per pixel sample of the pass), and for MLT the bootstrap's targets
-//! (one f32 plus one f64 of the discrete distribution per bootstrap path and depth) and the chains'
-//! sub-chains. Scene memory (meshes, accelerator, lights) is already built when this is checked and
-//! is reported by `plexus info`. The estimate is a lower bound: it omits scratch state, so a render
-//! it refuses certainly would not have fitted.
+//! Its parts:
+//! - **the scene** (`SceneMemory`), measured on the built scene: mesh arrays, the accelerator
+//!   (Embree's own allocations through its memory monitor, or the in-house BVH's nodes and
+//!   triangles), lights (distributions, environment texels) and textures;
+//! - **the render**, the buffers that grow with the budget's dimensions (see `driver`'s render
+//!   model): the film's unnormalised sums (3 × f64 per pixel; MLT stacks one W × H layer per path
+//!   depth), the normalised output image (3 × f32 per pixel), one pass of splat buffers (16 bytes a
+//!   contribution, at least one per pixel sample of the pass), and for MLT the bootstrap's targets
+//!   (one f32 plus one f64 of the discrete distribution per bootstrap path and depth) and the
+//!   chains' sub-chains.
+//!
+//! The estimate is a lower bound: it omits scratch state, so a render it refuses certainly would
+//! not have fitted. The scene is already built when the estimate is checked (mesh readers bound
+//! their allocations by the file sizes, `input_file`), so its bytes are part of what the process
+//! holds: see `available_memory`.
 
 use super::pss::settings::{MltSettings, MltVariant};
 use super::RenderError;
@@ -29,9 +37,29 @@ const BOOTSTRAP_PATH_BYTES: u64 = 4 + 8;
 /// and its current path's contribution, per path vertex (`max_depth + 2` vertices, two subpaths).
 const SUBCHAIN_BYTES_PER_VERTEX: u64 = 2 * 64;
 
-/// The memory a render will allocate for its film, pass buffers and integrator state.
+/// Bytes the built scene holds, by part.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct SceneMemory {
+    pub meshes: u64,
+    pub accel: u64,
+    /// Light distributions and environment texels.
+    pub lights: u64,
+    /// Image textures' texels. No material takes a texture yet: this is their place (texels ×
+    /// channels × bytes per channel, plus any mip levels), filled by `Scene::memory`.
+    pub textures: u64,
+}
+
+impl SceneMemory {
+    pub fn total(&self) -> u64 {
+        self.meshes.saturating_add(self.accel).saturating_add(self.lights).saturating_add(self.textures)
+    }
+}
+
+/// The memory of a render: the scene it renders, its film, pass buffers and integrator state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct RenderMemory {
+    /// The built scene (zero until `with_scene`).
+    pub scene: SceneMemory,
     /// Film sums (all MLT depth layers) and the output image.
     pub film: u64,
     /// One pass of splat buffers.
@@ -42,7 +70,11 @@ pub struct RenderMemory {
 
 impl RenderMemory {
     pub fn total(&self) -> u64 {
-        self.film.saturating_add(self.pass_buffers).saturating_add(self.chains)
+        self.scene.total().saturating_add(self.film).saturating_add(self.pass_buffers).saturating_add(self.chains)
+    }
+    /// This estimate with the scene's bytes.
+    pub fn with_scene(self, scene: SceneMemory) -> RenderMemory {
+        RenderMemory { scene, ..self }
     }
 }
 
@@ -76,7 +108,7 @@ pub fn render_memory(
     let Some(variant) = variant else {
         let film = mul(pixels, FILM_PIXEL_BYTES, "the film")?;
         let film = film.checked_add(image).ok_or_else(|| too_large("the film"))?;
-        return Ok(RenderMemory { film, pass_buffers, chains: 0 });
+        return Ok(RenderMemory { scene: SceneMemory::default(), film, pass_buffers, chains: 0 });
     };
     let settings = MltSettings::from_params(variant, params)?;
     let depths = match variant {
@@ -90,19 +122,22 @@ pub fn render_memory(
     let subchain = mul(settings.max_depth as u64 + 2, SUBCHAIN_BYTES_PER_VERTEX, "a sub-chain")?;
     let chains = mul(mul(settings.chains, depths, "the chains")?, subchain, "the chains")?;
     let chains = bootstrap.checked_add(chains).ok_or_else(|| too_large("the chains"))?;
-    Ok(RenderMemory { film, pass_buffers, chains })
+    Ok(RenderMemory { scene: SceneMemory::default(), film, pass_buffers, chains })
 }
 
-/// The memory this process may allocate: the cgroup's `memory.max` when it is set and finite,
-/// else the kernel's `MemAvailable`; the smaller of the two when both are known. `None` when
-/// neither can be read (then nothing is refused).
-pub fn available_memory() -> Option<u64> {
+/// The memory this process may use in all, its scene included: the cgroup's `memory.max` when
+/// it is set and finite, else the kernel's `MemAvailable` plus `held` (the bytes the process
+/// already holds for the scene, which `MemAvailable`, read after the scene was built, no longer
+/// counts); the smaller of the two when both are known. `None` when neither can be read (then
+/// nothing is refused).
+pub fn available_memory(held: u64) -> Option<u64> {
     let cgroup = std::fs::read_to_string("/sys/fs/cgroup/memory.max").ok().and_then(|s| s.trim().parse::<u64>().ok());
     let meminfo = std::fs::read_to_string("/proc/meminfo").ok().and_then(|text| {
         text.lines()
             .find_map(|l| l.strip_prefix("MemAvailable:"))
             .and_then(|rest| rest.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
             .and_then(|kib| kib.checked_mul(1024))
+            .map(|bytes| bytes.saturating_add(held))
     });
     match (cgroup, meminfo) {
         (Some(a), Some(b)) => Some(a.min(b)),
@@ -120,9 +155,15 @@ pub fn check_fits(memory: &RenderMemory, width: u32, height: u32, available: Opt
     let Some(available) = available else { return Ok(()) };
     if memory.total() > available {
         return Err(RenderError::Limit(format!(
-            "a {width}x{height} render needs at least {:.2} GiB (film {:.2}, pass buffers {:.2}, chains {:.2}) but \
-             only {:.2} GiB are available to the process; lower the resolution{}",
+            "a {width}x{height} render needs at least {:.2} GiB (scene {:.2}: meshes {:.2}, accelerator {:.2}, \
+             lights {:.2}, textures {:.2}; film {:.2}, pass buffers {:.2}, chains {:.2}) but only {:.2} GiB are \
+             available to the process; lower the resolution{}",
             gib(memory.total()),
+            gib(memory.scene.total()),
+            gib(memory.scene.meshes),
+            gib(memory.scene.accel),
+            gib(memory.scene.lights),
+            gib(memory.scene.textures),
             gib(memory.film),
             gib(memory.pass_buffers),
             gib(memory.chains),
@@ -147,6 +188,11 @@ mod tests {
         assert!(check_fits(&m, 65536, 65536, Some(m.total() - 1)).is_err());
         assert!(check_fits(&m, 65536, 65536, Some(m.total())).is_ok());
         assert!(check_fits(&m, 65536, 65536, None).is_ok());
+        // The scene's bytes count too.
+        let scene = SceneMemory { meshes: 1, accel: 2, lights: 3, textures: 4 };
+        let with = m.with_scene(scene);
+        assert_eq!(with.total(), m.total() + 10);
+        assert!(check_fits(&with, 65536, 65536, Some(m.total())).is_err());
     }
 
     #[test]

@@ -7,6 +7,7 @@ use std::fmt;
 use serde::Serialize;
 
 use super::Scene;
+use crate::integrator::memory::SceneMemory;
 use crate::light::Light;
 use crate::material::Material;
 use crate::sampling::{Distribution1D, Distribution2D};
@@ -61,12 +62,13 @@ pub struct SceneInfo {
     pub memory: MemoryEstimate,
 }
 
-/// Estimated bytes held by the built scene.
+/// Estimated bytes held by the built scene (`Scene::memory`, as the render's estimate counts it).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct MemoryEstimate {
     pub meshes: usize,
     pub accel: usize,
     pub lights: usize,
+    pub textures: usize,
     pub total: usize,
 }
 
@@ -144,20 +146,34 @@ fn distribution2d_bytes(d: &Distribution2D) -> usize {
     d.conditionals.iter().map(distribution_bytes).sum::<usize>() + distribution_bytes(&d.marginal)
 }
 
+impl Scene {
+    /// The bytes this built scene holds, by part: the scene's share of the render memory estimate
+    /// (`integrator::memory`) that `render` checks and `info` prints.
+    pub fn memory(&self) -> SceneMemory {
+        let meshes: usize = self.meshes.iter().map(|m| m.memory_bytes()).sum();
+        let lights: usize = self
+            .lights
+            .iter()
+            .map(|l| match l {
+                Light::Area(a) => distribution_bytes(&a.triangles),
+                Light::ConstantEnvironment(_) => 0,
+                Light::ImageEnvironment(e) => e.texels.capacity() * 12 + distribution2d_bytes(&e.distribution),
+            })
+            .sum::<usize>()
+            + distribution_bytes(&self.light_sampler.distribution);
+        SceneMemory {
+            meshes: meshes as u64,
+            accel: self.accel.memory_bytes() as u64,
+            lights: lights as u64,
+            // Image textures (wt-materials): the bytes of their texels belong here.
+            textures: 0,
+        }
+    }
+}
+
 /// Counts, bounds and estimated memory of a built scene, for `plexus info`.
 pub fn scene_info(scene: &Scene) -> SceneInfo {
-    let meshes: usize = scene.meshes.iter().map(|m| m.memory_bytes()).sum();
-    let accel = scene.accel.memory_bytes();
-    let lights: usize = scene
-        .lights
-        .iter()
-        .map(|l| match l {
-            Light::Area(a) => distribution_bytes(&a.triangles),
-            Light::ConstantEnvironment(_) => 0,
-            Light::ImageEnvironment(e) => e.texels.capacity() * 12 + distribution2d_bytes(&e.distribution),
-        })
-        .sum::<usize>()
-        + distribution_bytes(&scene.light_sampler.distribution);
+    let memory = scene.memory();
     let environment = scene.environment_light().map(|(_, l)| match l {
         Light::ImageEnvironment(e) => format!("image {}x{}", e.width, e.height),
         _ => "constant".to_string(),
@@ -176,7 +192,13 @@ pub fn scene_info(scene: &Scene) -> SceneInfo {
         bounds_max: scene.bounds.max.to_array(),
         resolution: [scene.camera.width, scene.camera.height],
         accel: scene.accel.kind().to_string(),
-        memory: MemoryEstimate { meshes, accel, lights, total: meshes + accel + lights },
+        memory: MemoryEstimate {
+            meshes: memory.meshes as usize,
+            accel: memory.accel as usize,
+            lights: memory.lights as usize,
+            textures: memory.textures as usize,
+            total: memory.total() as usize,
+        },
     }
 }
 
@@ -201,12 +223,13 @@ impl fmt::Display for SceneInfo {
         writeln!(f, "resolution:  {}x{}", self.resolution[0], self.resolution[1])?;
         write!(
             f,
-            "memory:      {:.2} MiB (meshes {:.2}, {} accelerator {:.2}, lights {:.2})",
+            "memory:      {:.2} MiB for the scene (meshes {:.2}, {} accelerator {:.2}, lights {:.2}, textures {:.2})",
             mib(self.memory.total),
             mib(self.memory.meshes),
             self.accel,
             mib(self.memory.accel),
-            mib(self.memory.lights)
+            mib(self.memory.lights),
+            mib(self.memory.textures)
         )
     }
 }

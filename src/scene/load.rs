@@ -215,10 +215,7 @@ impl Builder<'_> {
              {MAX_EXTENT:e} correctly: scale the scene into that range"
         );
         if !(MIN_EXTENT..=MAX_EXTENT).contains(&extent) {
-            return Err(self.err(
-                "shapes",
-                format!("the scene (shapes and camera) spans {extent:e} units; {range}"),
-            ));
+            return Err(self.err("shapes", format!("the scene (shapes and camera) spans {extent:e} units; {range}")));
         }
         if largest > MAX_EXTENT {
             return Err(self.err("shapes", format!("the scene reaches coordinate {largest:e}; {range}")));

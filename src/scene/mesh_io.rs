@@ -145,7 +145,10 @@ fn check_ply_counts<R: BufRead>(reader: &mut R, size: u64) -> Result<(), String>
         let n = n.map_err(|e| e.to_string())? as u64;
         header_bytes += n;
         if n == 0 || header_bytes >= MAX_PLY_HEADER {
-            return Err(format!("invalid PLY: no 'end_header' in the first {} bytes", header_bytes.min(MAX_PLY_HEADER)));
+            return Err(format!(
+                "invalid PLY: no 'end_header' in the first {} bytes",
+                header_bytes.min(MAX_PLY_HEADER)
+            ));
         }
         let text = String::from_utf8_lossy(&line);
         let words: Vec<&str> = text.split_whitespace().collect();
@@ -153,7 +156,8 @@ fn check_ply_counts<R: BufRead>(reader: &mut R, size: u64) -> Result<(), String>
             ["end_header"] => break,
             ["format", f, ..] => ascii = *f == "ascii",
             ["element", name, count] => {
-                let count = count.parse::<u64>().map_err(|_| format!("invalid PLY: element '{name}' count '{count}'"))?;
+                let count =
+                    count.parse::<u64>().map_err(|_| format!("invalid PLY: element '{name}' count '{count}'"))?;
                 elements.push((name.to_string(), count, 0));
             }
             ["property", "list", count_type, _, _] => {
