@@ -490,6 +490,10 @@ impl Driver {
             }
         }
 
+        if let Passes::Count(n) = passes {
+            // Skipping another set's passes may have stepped past the end of the schedule.
+            pass = pass.min(n.max(next_pass));
+        }
         let mut counters = Counters::default();
         let mut slot_states = Vec::with_capacity(threads);
         for slot in slots {
