@@ -44,7 +44,7 @@ pub fn run(args: MergeArgs) -> anyhow::Result<()> {
     }
     let params: toml::Table = toml::from_str(&h.params).map_err(bad_input)?;
     let integrator = integrator::create(&h.integrator, &params)?;
-    if integrator.settings_json().to_string() != h.settings {
+    if integrator.settings_json() != serde_json::from_str::<serde_json::Value>(&h.settings).unwrap_or_default() {
         return Err(bad_input(StateError::Mismatch(format!(
             "the shards' {} settings ({}) are not what this plexus makes of them",
             h.integrator, h.settings

@@ -62,7 +62,7 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
     let params: toml::Table =
         toml::from_str(&h.params).map_err(|e| bad_input(format!("{}: {e}", args.state.display())))?;
     let integrator = integrator::create(&h.integrator, &params)?;
-    if integrator.settings_json().to_string() != h.settings {
+    if integrator.settings_json() != serde_json::from_str::<serde_json::Value>(&h.settings).unwrap_or_default() {
         return Err(bad_input(StateError::Mismatch(format!(
             "{}: the {} settings it was rendered with ({}) are not what this plexus makes of them ({})",
             args.state.display(),

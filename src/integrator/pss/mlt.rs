@@ -37,8 +37,8 @@
 //! W × (H·D) film (one layer for PSSMLT), written through the chain unit's `SplatBuffer`, which
 //! the driver applies in unit order (`integrator::driver`). The normalisation reads that film, the
 //! large-step totals summed over the units in unit order (b_d) and the depths' iteration counts
-//! (integers), at output and for previews alike; the depth choice of a pass pools the previous
-//! pass's totals in unit order too (`PooledLargeSteps`). So the image, bit for bit, depends on the
+//! (integers), at output and for previews alike; each chain's depth choice reads its own totals
+//! (`depth_choice`), so chains never depend on each other. So the image, bit for bit, depends on the
 //! seed and the chain count, not on the thread count. The technique count layers (a debug output,
 //! off by default) stay per slot, merged in slot order: they hold integer counts (sums of 1.0,
 //! exact in f64 below 2^53), which any merge order gives bit for bit.

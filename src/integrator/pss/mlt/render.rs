@@ -75,7 +75,7 @@ impl Integrator for Mlt {
         let units = part.units.iter().map(|(_, bytes)| ChainUnit::load(bytes)).collect::<Result<Vec<_>, _>>()?;
         let film = state_film(state);
         let depths = self.depth_count();
-        if film.height % depths != 0 {
+        if !film.height.is_multiple_of(depths) {
             return Err(StateError::Mismatch("the state's film does not hold one layer per depth".into()).into());
         }
         let mut slot = self.new_slot(0, 0);
@@ -116,6 +116,10 @@ impl Integrator for Mlt {
         Ok(encode(&merged)?)
     }
 }
+
+/// Per depth, the distribution of the bootstrap's targets the chains start from (`None` for a
+/// depth it found no light at).
+type StartDistributions = Vec<Option<Distribution1D>>;
 
 /// The render-level figures of an output.
 struct Tally {
@@ -319,7 +323,7 @@ impl Mlt {
         job: &RenderJob,
         progress: &dyn Progress,
         same_everywhere: bool,
-    ) -> Result<(BootstrapPart, Counters, Option<Vec<Option<Distribution1D>>>), RenderError> {
+    ) -> Result<(BootstrapPart, Counters, Option<StartDistributions>), RenderError> {
         let depths = self.depth_count();
         // The first round runs one batch per depth; under a time budget the remaining rounds are
         // capped so that the bootstrap takes at most BOOTSTRAP_SHARE of the budget (large steps
@@ -404,7 +408,7 @@ impl Mlt {
     fn start_chain(
         &self,
         c: u64,
-        dists: &[Option<Distribution1D>],
+        dists: &StartDistributions,
         ctx: &crate::integrator::bdpt::BdptContext,
         seed: u64,
         init_slot: &mut SlotState,
