@@ -125,6 +125,8 @@ pub fn write(path: &Path, stats: &RenderStats) -> anyhow::Result<()> {
         .permissions(std::fs::Permissions::from_mode(0o666))
         .tempfile_in(dir)
         .and_then(|mut file| {
+            // A second Ctrl-C exits at once: the guard has its handler remove this file first.
+            let _interrupt_guard = plexus::interrupt::TempGuard::new(file.path());
             file.write_all((text + "\n").as_bytes())?;
             file.persist(path).map_err(|e| e.error)?;
             Ok(())

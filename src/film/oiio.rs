@@ -268,6 +268,8 @@ fn encode_through_temp_file(path: &Path, image: &Image, opts: &WriteOptions) -> 
     // `check_output_path` guaranteed an extension.
     let ext = path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
     let temp = temp_file_beside(path, &ext)?;
+    // A second Ctrl-C exits at once: the guard has its handler remove this file first.
+    let _interrupt_guard = crate::interrupt::TempGuard::new(&temp);
     let c_temp = c_path(&temp)?;
     let mut buf = [0u8; 1024];
     // SAFETY: `c_temp` is NUL-terminated; `data` points to width*height*3 values of `data_type`

@@ -208,11 +208,6 @@ pub struct RunControl<'a> {
 }
 
 impl RunControl<'_> {
-    /// Whether this control never stops a run nor checkpoints it.
-    pub fn is_inert(&self) -> bool {
-        self.stop.is_none() && self.stop_at_pass.is_none() && self.checkpoint_every.is_none()
-    }
-
     fn stop_requested(&self, passes_done: u64) -> bool {
         self.stop.is_some_and(|f| f.load(Ordering::SeqCst)) || self.stop_at_pass.is_some_and(|n| passes_done >= n)
     }
@@ -495,6 +490,10 @@ impl Driver {
             }
         }
 
+        if let Passes::Count(n) = passes {
+            // Skipping another set's passes may have stepped past the end of the schedule.
+            pass = pass.min(n.max(next_pass));
+        }
         let mut counters = Counters::default();
         let mut slot_states = Vec::with_capacity(threads);
         for slot in slots {
@@ -693,6 +692,8 @@ pub struct ImageRender<'a> {
     passes: PassSet,
     /// Wall time of the runs a resumed render continues.
     earlier_seconds: f64,
+    /// Whether `run` returns the state reached (`ImageRun::state`).
+    save: bool,
 }
 
 /// What [`ImageRender::run`] produced.
@@ -739,13 +740,15 @@ impl<'a> ImageRender<'a> {
             session: Session::default(),
             passes: PassSet::ALL,
             earlier_seconds: 0.0,
+            save: false,
         })
     }
 
-    /// Runs under `session` (`crate::state`): a resumed render continues the saved schedule from
+    /// Runs under `session` (`crate::state`), with `save` returning the state reached: a resumed render continues the saved schedule from
     /// its state (the job's budget is then the new total, or the time this run may take); a shard
     /// renders passes p ≡ K (mod N) of the schedule.
-    pub fn with_session(mut self, session: Session<'a>) -> Result<Self, RenderError> {
+    pub fn with_session(mut self, session: Session<'a>, save: bool) -> Result<Self, RenderError> {
+        self.save = save;
         let (width, height) = (self.driver.width as u32, self.driver.height as u32);
         if let Some(state) = session.resume {
             if (state.film_width, state.film_height) != (width, height)
@@ -867,11 +870,7 @@ impl<'a> ImageRender<'a> {
         let spp = plan.spp_in_set(set, out.passes);
         let scale = if spp > 0 { 1.0 / spp as f64 } else { 0.0 };
         let wall_time = self.driver.clock().now().saturating_sub(self.started);
-        let state = (resume.is_some()
-            || self.session.shard.is_some()
-            || self.session.checkpoint.is_some()
-            || !self.session.control.is_inert())
-        .then(|| {
+        let state = self.save.then(|| {
             let mut state = self.state_at(out.passes, &out.film, out.counters.clone(), wall_time);
             state.interrupted = out.stopped;
             state

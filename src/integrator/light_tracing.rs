@@ -77,7 +77,7 @@ impl Integrator for LightTracer {
         progress: &dyn Progress,
         session: &Session,
     ) -> Result<SessionOutput, RenderError> {
-        let run = self.render_run_session(scene, job, progress, *session)?;
+        let run = self.render_run_session(scene, job, progress, *session, true)?;
         let state = run.state.ok_or_else(|| self.no_state())?;
         Ok(SessionOutput { output: run.output, state })
     }
@@ -95,18 +95,21 @@ impl LightTracer {
     /// The render with its unnormalised film (`Integrator::render` keeps only the output). Each
     /// "sample" of pixel (x, y) is one light path, splatted wherever its connections land.
     pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<ImageRun, RenderError> {
-        self.render_run_session(scene, job, progress, Session::default())
+        self.render_run_session(scene, job, progress, Session::default(), false)
     }
 
-    /// [`Self::render_run`] under a session (`crate::state`): resumed, sharded, stopped early.
+    /// [`Self::render_run`] under a session (`crate::state`): resumed, sharded, stopped early;
+    /// with `save`, `ImageRun::state` holds the state reached.
     pub fn render_run_session(
         &self,
         scene: &Scene,
         job: &RenderJob,
         progress: &dyn Progress,
         session: Session,
+        save: bool,
     ) -> Result<ImageRun, RenderError> {
-        let render = ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?.with_session(session)?;
+        let render =
+            ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?.with_session(session, save)?;
         let ctx = BdptContext::new(scene, self.settings.rr_depth as usize, MisHeuristic::None);
         let max_vertices = self.settings.max_depth as usize + 1;
         let (mut run, _) = render.run(

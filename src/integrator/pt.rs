@@ -305,7 +305,7 @@ impl Integrator for PathTracer {
         progress: &dyn Progress,
         session: &Session,
     ) -> Result<SessionOutput, RenderError> {
-        let run = self.render_run_session(scene, job, progress, *session)?;
+        let run = self.render_run_session(scene, job, progress, *session, true)?;
         let state = run.state.ok_or_else(|| self.no_state())?;
         Ok(SessionOutput { output: run.output, state })
     }
@@ -322,18 +322,21 @@ impl Integrator for PathTracer {
 impl PathTracer {
     /// The render with its unnormalised film (`Integrator::render` keeps only the output).
     pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<ImageRun, RenderError> {
-        self.render_run_session(scene, job, progress, Session::default())
+        self.render_run_session(scene, job, progress, Session::default(), false)
     }
 
-    /// [`Self::render_run`] under a session (`crate::state`): resumed, sharded, stopped early.
+    /// [`Self::render_run`] under a session (`crate::state`): resumed, sharded, stopped early;
+    /// with `save`, `ImageRun::state` holds the state reached.
     pub fn render_run_session(
         &self,
         scene: &Scene,
         job: &RenderJob,
         progress: &dyn Progress,
         session: Session,
+        save: bool,
     ) -> Result<ImageRun, RenderError> {
-        let render = ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?.with_session(session)?;
+        let render =
+            ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?.with_session(session, save)?;
         let (run, _) = render.run(
             |_| (),
             |x, y, rng, slot| {

@@ -273,7 +273,7 @@ impl Integrator for Bdpt {
             )
             .into());
         }
-        let run = self.render_run_session(scene, job, progress, *session)?;
+        let run = self.render_run_session(scene, job, progress, *session, true)?;
         let state = run.state.ok_or_else(|| self.no_state())?;
         Ok(SessionOutput { output: run.output, state })
     }
@@ -292,19 +292,21 @@ impl Bdpt {
     /// technique layers when `technique_images` is set. (Those layers are per-slot films merged in
     /// slot order, so unlike the image their low bits depend on the thread count.)
     pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<ImageRun, RenderError> {
-        self.render_run_session(scene, job, progress, Session::default())
+        self.render_run_session(scene, job, progress, Session::default(), false)
     }
 
-    /// [`Self::render_run`] under a session (`crate::state`): resumed, sharded, stopped early.
+    /// [`Self::render_run`] under a session (`crate::state`): resumed, sharded, stopped early;
+    /// with `save`, `ImageRun::state` holds the state reached.
     pub fn render_run_session(
         &self,
         scene: &Scene,
         job: &RenderJob,
         progress: &dyn Progress,
         session: Session,
+        save: bool,
     ) -> Result<ImageRun, RenderError> {
         let (width, height) = (scene.camera.width, scene.camera.height);
-        let render = ImageRender::new(job, width, height, progress)?.with_session(session)?;
+        let render = ImageRender::new(job, width, height, progress)?.with_session(session, save)?;
         let ctx = self.context(scene);
         let technique_depth = (self.settings.technique_max_depth.min(self.settings.max_depth)) as usize;
         let (mut run, slot_states) = render.run(
