@@ -42,31 +42,60 @@ fn in_root() {
     std::env::set_current_dir(env!("CARGO_MANIFEST_DIR")).expect("cd to the repository");
 }
 
-#[test]
-fn seven_scenes_import_to_the_committed_toml_and_load() {
+/// Imports scene `name` of `SCENES`, compares with the committed TOML and warnings, and loads the
+/// committed TOML.
+fn import_and_load(name: &str) {
     shared();
     in_root();
-    for &(name, xml, skip_missing) in SCENES {
-        let xml_path = PathBuf::from(format!("../shared/scenes/{name}/{xml}"));
-        let options = ImportOptions {
-            toml_dir: Some(PathBuf::from("scenes/imported")),
-            skip_missing_meshes: skip_missing,
-            ..Default::default()
-        };
-        let imported = import_mitsuba(&xml_path, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
-        let committed_path = format!("scenes/imported/{name}.toml");
-        let committed = std::fs::read_to_string(&committed_path).unwrap_or_else(|e| panic!("{committed_path}: {e}"));
-        assert!(
-            imported.toml == committed,
-            "{committed_path} is not what the importer writes today: run scripts/import-scenes.sh"
-        );
-        let warnings = std::fs::read_to_string(format!("scenes/imported/{name}.warnings")).expect("warnings file");
-        for line in imported.warnings.lines() {
-            assert!(warnings.contains(&line), "{name}: warning not recorded in {name}.warnings: {line}");
-        }
-        let loaded = load_scene(Path::new(&committed_path), None).unwrap_or_else(|e| panic!("{name}: {e}"));
-        assert!(!loaded.scene.lights.is_empty() && loaded.scene.triangle_count() > 0, "{name}");
+    let &(_, xml, skip_missing) = SCENES.iter().find(|s| s.0 == name).expect("listed scene");
+    let xml_path = PathBuf::from(format!("../shared/scenes/{name}/{xml}"));
+    let options = ImportOptions {
+        toml_dir: Some(PathBuf::from("scenes/imported")),
+        skip_missing_meshes: skip_missing,
+        ..Default::default()
+    };
+    let imported = import_mitsuba(&xml_path, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let committed_path = format!("scenes/imported/{name}.toml");
+    let committed = std::fs::read_to_string(&committed_path).unwrap_or_else(|e| panic!("{committed_path}: {e}"));
+    assert!(
+        imported.toml == committed,
+        "{committed_path} is not what the importer writes today: run scripts/import-scenes.sh"
+    );
+    let warnings = std::fs::read_to_string(format!("scenes/imported/{name}.warnings")).expect("warnings file");
+    for line in imported.warnings.lines() {
+        assert!(warnings.contains(&line), "{name}: warning not recorded in {name}.warnings: {line}");
     }
+    let loaded = load_scene(Path::new(&committed_path), None).unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert!(!loaded.scene.lights.is_empty() && loaded.scene.triangle_count() > 0, "{name}");
+}
+
+#[test]
+fn cornell_box_imports_and_loads() {
+    import_and_load("cornell-box");
+}
+#[test]
+fn veach_ajar_imports_and_loads() {
+    import_and_load("veach-ajar");
+}
+#[test]
+fn veach_lamp_imports_and_loads() {
+    import_and_load("veach-lamp");
+}
+#[test]
+fn torus_imports_and_loads() {
+    import_and_load("torus");
+}
+#[test]
+fn staircase_imports_and_loads() {
+    import_and_load("staircase");
+}
+#[test]
+fn breakfast_room_imports_and_loads() {
+    import_and_load("breakfast-room");
+}
+#[test]
+fn living_room_imports_and_loads() {
+    import_and_load("living-room");
 }
 
 /// `plexus render SCENE.xml` imports on the fly, prints the warnings with file:line, and renders;

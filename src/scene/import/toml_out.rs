@@ -102,9 +102,6 @@ impl Section {
             None => self.entries.push((k.to_string(), v)),
         }
     }
-    pub fn get(&self, k: &str) -> Option<&TVal> {
-        self.entries.iter().find(|(key, _)| key == k).map(|(_, v)| v)
-    }
 }
 
 /// Writes `sections` after the `preamble` comment lines.
