@@ -57,6 +57,7 @@ use std::time::Instant;
 
 use glam::Vec2;
 
+use super::bootstrap::run_bootstrap;
 use super::inverse::{invert_technique, same_path, InversionFailure};
 use super::jump::{jump_acceptance, JumpSide};
 use super::sampler::{MutationSettings, PssSampler};
@@ -665,58 +666,28 @@ impl Mlt {
             Budget::SamplesPerPixel(_) => None,
         };
 
-        // Bootstrap: up to `bootstrap` uniform samples per depth, in batches over the pool
-        // (deterministic: each sample has its own stream). Each batch keeps its samples' targets.
-        // The first round runs one batch per depth; under a time budget the remaining rounds are
-        // capped so that the bootstrap takes at most BOOTSTRAP_SHARE of the budget (large steps
-        // keep refining b during the render, so a shorter bootstrap costs accuracy of the start
-        // only, not correctness).
-        progress.message("bootstrap");
-        const BATCH: u64 = 4096;
-        const BOOTSTRAP_SHARE: f64 = 0.25;
-        let n_requested = self.settings.bootstrap;
-        let batches_per_depth = n_requested.div_ceil(BATCH);
-        let run_batches = |rounds: std::ops::Range<u64>| {
-            let batches: Vec<(usize, u64, Vec<f32>)> =
-                (0..depths).flat_map(|d| rounds.clone().map(move |b| (d, b, Vec::new()))).collect();
-            driver.run(
-                batches,
-                Passes::Count(1),
-                progress,
-                |_| self.new_slot(0, 0),
-                |_, (d, b, targets), slot| {
-                    let start = *b * BATCH;
-                    let end = (start + BATCH).min(n_requested);
-                    for i in start..end {
-                        let mut sampler = self.bootstrap_sampler(job.seed, *d, i);
-                        sampler.start_iteration_with(true);
-                        let st = self.evaluate(&ctx, *d, &mut sampler, None, &mut slot.state, &mut slot.counters);
-                        targets.push(st.target);
-                    }
-                    0
-                },
-                None,
-            )
-        };
-        let first = run_batches(0..1);
-        let rounds = match time_budget {
-            Some(s) => {
-                let round = first.elapsed.as_secs_f64().max(1e-6);
-                let affordable = ((BOOTSTRAP_SHARE * s - round) / round).floor().max(0.0) as u64;
-                batches_per_depth.min(1 + affordable)
-            }
-            None => batches_per_depth,
-        };
-        let rest = run_batches(1..rounds);
-        let n_boot = n_requested.min(rounds * BATCH);
-        let mut boot_counters = first.counters;
-        boot_counters.merge(&rest.counters);
-        let boot_elapsed = first.elapsed + rest.elapsed;
-        let mut boot_targets: Vec<Vec<f32>> = vec![Vec::with_capacity(n_boot as usize); depths];
-        for (d, _, t) in first.units.into_iter().chain(rest.units) {
-            boot_targets[d].extend(t);
-        }
-        let boot_sums: Vec<f64> = boot_targets.iter().map(|t| t.iter().map(|&x| x as f64).sum()).collect();
+        // Bootstrap: up to `bootstrap` uniform samples per depth (`bootstrap::run_bootstrap`; each
+        // sample has its own stream, so a chain can restart from it exactly). Under a time budget
+        // it takes at most a quarter of the budget: large steps keep refining b during the render,
+        // so a shorter bootstrap costs accuracy of the start only, not correctness.
+        let boot = run_bootstrap(
+            &driver,
+            progress,
+            depths,
+            self.settings.bootstrap,
+            time_budget,
+            |_| self.new_slot(0, 0),
+            |d, i, slot, counters| {
+                let mut sampler = self.bootstrap_sampler(job.seed, d, i);
+                sampler.start_iteration_with(true);
+                self.evaluate(&ctx, d, &mut sampler, None, slot, counters).target
+            },
+        );
+        let n_boot = boot.paths;
+        let boot_counters = boot.counters;
+        let boot_elapsed = boot.elapsed;
+        let boot_targets = boot.targets;
+        let boot_sums = boot.sums;
         let b_boot: Vec<f64> = boot_sums.iter().map(|s| s / n_boot as f64).collect();
         let b_total: f64 = b_boot.iter().sum();
 
