@@ -121,6 +121,11 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let output = integrator.render(scene, &job, &progress);
     progress.finish();
     let output = output?;
+    // The integrator's warnings (an MLT bootstrap that found no light, ...) are in its JSON
+    // statistics; a user who reads only the terminal must see them too.
+    for warning in output.extra_stats["warnings"].as_array().into_iter().flatten() {
+        eprintln!("warning: {}", warning.as_str().unwrap_or_default());
+    }
 
     for path in &plan.outputs {
         write_image(path, &output.image, &WriteOptions::default())?;

@@ -30,11 +30,12 @@
 //! where p_{s′,t′} is the product of the area densities of generating the new vertices z that way:
 //! t′ of them from the camera side in order, s′ from the emitter side in order, zero if the split's
 //! connection would end at a specular vertex. The sum is over every split because ȳ does not
-//! record which one produced it: all of them could have. `transition` finds l and m from the two
-//! paths alone (kept vertices are copied bit for bit, new ones are continuous random points, so the
-//! kept prefix and suffix are the longest common ones with probability 1), and the reverse density
-//! T(ȳ → x̄) is the same function with the roles swapped: the deleted vertices of x̄ are the "new"
-//! ones of the reverse move. The densities are in the delta-stripped measure of the module docs;
+//! record which one produced it: all of them could have. The cut (l, k_d, k_a) is the proposal's
+//! record (`Strategy::Move`), and the reverse density T(ȳ → x̄) is the same function for the
+//! reverse cut (l, k_a, k_d): the deleted vertices of x̄ are the "new" ones of the reverse move.
+//! The cut cannot be read off the two paths: a walk through a specular vertex regenerates the next
+//! vertex bit for bit, so a longer cut can give the same ȳ as a shorter one, and pairing each cut
+//! with its own reverse is what keeps detailed balance. The densities are in the delta-stripped measure of the module docs;
 //! every edge a walk traced carries its G in both f and T, so in f(ȳ)/T(x̄→ȳ) only the connection
 //! edge's G remains, as in BDPT's unweighted contribution C = f/p.
 //!
@@ -146,8 +147,10 @@ pub struct Bidirectional {
     pub omit_addition_pmf: bool,
 }
 
-/// Where a mutation cut the path: kept prefix x_0 … x_l, kept suffix from index m (m = n: the
-/// emitter end is regrown from a new emitter sample).
+/// The change a bidirectional proposal made (its `Strategy::Move`): it kept x_0 … x_l, deleted
+/// k_d edges (so the kept suffix starts at m = l + k_d; m = n: the emitter end was regrown from a
+/// new emitter sample) and added k_a edges. The reverse change keeps the same vertices and swaps
+/// k_d and k_a.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Cut {
     pub l: usize,
@@ -164,29 +167,6 @@ fn as_role(v: &PathVertex, kind: VertexKind) -> Vertex {
 }
 
 impl Bidirectional {
-    /// The cut that turns `from` into `to`: the longest common prefix and suffix (module docs).
-    pub fn find_cut(from: &PathState, to: &PathState) -> Option<Cut> {
-        let (x, y) = (&from.vertices, &to.vertices);
-        let (nx, ny) = (x.len(), y.len());
-        if nx < 2 || ny < 2 {
-            return None;
-        }
-        let shortest = nx.min(ny);
-        let prefix = x.iter().zip(y).take_while(|(a, b)| a.same_as(b)).count();
-        if prefix == 0 {
-            return None;
-        }
-        let suffix = x.iter().rev().zip(y.iter().rev()).take_while(|(a, b)| a.same_as(b)).count();
-        let suffix = suffix.min(shortest - prefix);
-        let l = prefix - 1;
-        let kd = nx - suffix - l;
-        let ka = ny - suffix - l;
-        if kd == 1 && ka == 1 {
-            return None;
-        }
-        Some(Cut { l, kd, ka })
-    }
-
     /// p_{s′,t′} of generating `y`'s new vertices (those between y_l and y_{m′}, m′ = l + k_a) with
     /// s′ from the emitter side and the rest from the camera side.
     pub fn split_density(ctx: &PathContext, y: &[PathVertex], cut: Cut, s: usize) -> f64 {
@@ -305,6 +285,7 @@ impl Bidirectional {
 
 impl Strategy for Bidirectional {
     type Kernel = LengthKernel;
+    type Move = Cut;
 
     fn name(&self) -> &'static str {
         "bidirectional"
@@ -322,7 +303,7 @@ impl Strategy for Bidirectional {
         kernel: &LengthKernel,
         rng: &mut Rng,
         counters: &mut Counters,
-    ) -> Option<PathState> {
+    ) -> Option<(PathState, Cut)> {
         let x = &path.vertices;
         let n = x.len();
         let max_vertices = ctx.max_depth + 2;
@@ -335,12 +316,15 @@ impl Strategy for Bidirectional {
         let new = Self::grow(ctx, x, l, m, t, s, rng, counters)?;
         let vertices: Vec<Vertex> =
             x[..=l].iter().map(|v| v.vertex).chain(new).chain(x[m.min(n)..].iter().map(|v| v.vertex)).collect();
-        Some(PathState::new(ctx, &vertices, counters))
+        Some((PathState::new(ctx, &vertices, counters), Cut { l, kd, ka }))
     }
 
-    fn transition(&self, ctx: &PathContext, kernel: &LengthKernel, from: &PathState, to: &PathState) -> f64 {
-        let Some(cut) = Self::find_cut(from, to) else { return 0.0 };
+    fn transition(&self, ctx: &PathContext, kernel: &LengthKernel, from: &PathState, to: &PathState, cut: &Cut) -> f64 {
+        let cut = *cut;
         let n = from.len();
+        if cut.kd == 0 || cut.ka == 0 || cut.l + cut.kd > n || to.len() + cut.kd != n + cut.ka {
+            return 0.0;
+        }
         let max_vertices = ctx.max_depth + 2;
         let position = 1.0 / (n - cut.kd + 1) as f64;
         #[allow(unused_mut)]
@@ -359,5 +343,9 @@ impl Strategy for Bidirectional {
         } else {
             0.0
         }
+    }
+
+    fn reverse(&self, cut: &Cut) -> Cut {
+        Cut { l: cut.l, kd: cut.ka, ka: cut.kd }
     }
 }

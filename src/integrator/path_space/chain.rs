@@ -109,12 +109,10 @@ pub fn step(
                     s.generation_failures += 1;
                 }
             }
-            Some(y) if y.f_star > 0.0 => {
-                let t_forward = entry.transition(ctx, current, y);
-                let t_reverse = entry.transition(ctx, y, current);
-                let p_reverse = set.probability(ctx, y, i);
-                let num = y.f_star as f64 * p_reverse * t_reverse;
-                let den = current.f_star as f64 * p_forward * t_forward;
+            Some(y) if y.path.f_star > 0.0 => {
+                let p_reverse = set.probability(ctx, &y.path, i);
+                let num = y.path.f_star * p_reverse * y.reverse;
+                let den = current.f_star * p_forward * y.forward;
                 let r = num / den;
                 a = if den > 0.0 && r.is_finite() { r.min(1.0) } else { 0.0 };
                 if let Some(s) = strategy {
@@ -123,7 +121,7 @@ pub fn step(
             }
             Some(_) => {}
         }
-        proposal = y;
+        proposal = y.map(|y| y.path);
     }
     if let Some(y) = proposal.as_ref().filter(|_| a > 0.0) {
         splat(y, a, film);
@@ -167,7 +165,7 @@ fn splat(path: &PathState, w: f64, film: &mut SplatBuffer) {
     if !(w > 0.0) || !(path.f_star > 0.0) {
         return;
     }
-    let value = path.f * (w as f32 / path.f_star);
+    let value = (path.f * (w / path.f_star)).as_vec3();
     if is_finite(value) {
         film.splat(path.raster, value);
     }

@@ -2,7 +2,7 @@
 //! its interaction kind, and the path's raster position and contribution f(x̄), which
 //! [`PathState::new`] evaluates from the vertices alone (`contribution::evaluate`).
 
-use glam::Vec2;
+use glam::{DVec3, Vec2};
 use serde::Serialize;
 
 use super::contribution::evaluate;
@@ -11,7 +11,6 @@ use crate::integrator::bdpt::{Vertex, VertexKind};
 use crate::light::Light;
 use crate::material::Material;
 use crate::scene::Scene;
-use crate::spectrum::{luminance, Rgb};
 use crate::stats::Counters;
 
 /// How light interacts at a vertex: what the mutations (and part 16's tree over path signatures)
@@ -42,19 +41,6 @@ impl PathVertex {
     /// specular surface (the pinhole and emitter points can be connected to, as in BDPT).
     pub fn connectible(&self) -> bool {
         self.interaction != Interaction::Specular
-    }
-
-    /// Bitwise identity of position, normal, material, emitter and direction: the mutations copy
-    /// kept vertices unchanged, so this is how `transition` finds them again.
-    pub fn same_as(&self, other: &PathVertex) -> bool {
-        let (a, b) = (&self.vertex, &other.vertex);
-        a.p.to_array().map(f32::to_bits) == b.p.to_array().map(f32::to_bits)
-            && a.ng.to_array().map(f32::to_bits) == b.ng.to_array().map(f32::to_bits)
-            && a.dir.to_array().map(f32::to_bits) == b.dir.to_array().map(f32::to_bits)
-            && a.material == b.material
-            && a.light == b.light
-            && a.infinite == b.infinite
-            && (a.kind == VertexKind::Camera) == (b.kind == VertexKind::Camera)
     }
 }
 
@@ -97,13 +83,19 @@ pub fn with_role(scene: &Scene, mut v: Vertex, index: usize, n: usize) -> PathVe
 }
 
 /// A path of the chain: vertices camera first, emitter last; where it lands on the film; its
-/// contribution f(x̄) in the module's measure and the chain's scalar target f*(x̄) = luminance(f).
+/// contribution f(x̄) in the module's measure and the chain's scalar target f*(x̄) = luminance(f),
+/// both in f64 (`contribution::evaluate` says why).
 #[derive(Clone, Debug, Default)]
 pub struct PathState {
     pub vertices: Vec<PathVertex>,
     pub raster: Vec2,
-    pub f: Rgb,
-    pub f_star: f32,
+    pub f: DVec3,
+    pub f_star: f64,
+}
+
+/// Luminance of an f64 colour (the weights of `spectrum::luminance`).
+pub fn luminance64(c: DVec3) -> f64 {
+    0.212_671 * c.x + 0.715_160 * c.y + 0.072_169 * c.z
 }
 
 impl PathState {
@@ -119,15 +111,15 @@ impl PathState {
     /// As `new`, for vertices whose roles are already assigned.
     pub fn from_path_vertices(ctx: &PathContext, vertices: Vec<PathVertex>, counters: &mut Counters) -> PathState {
         let (f, raster) = evaluate(ctx, &vertices, counters);
-        let f_star = luminance(f);
-        let finite = f_star.is_finite() && crate::spectrum::is_finite(f);
+        let f_star = luminance64(f);
+        let finite = f_star.is_finite() && f.is_finite();
         if !finite {
             counters.nonfinite_dropped += 1;
         }
         if finite && f_star > 0.0 {
             PathState { vertices, raster, f, f_star }
         } else {
-            PathState { vertices, raster, f: Rgb::ZERO, f_star: 0.0 }
+            PathState { vertices, raster, f: DVec3::ZERO, f_star: 0.0 }
         }
     }
 

@@ -1,9 +1,10 @@
 //! The strategy interface every path-space mutation implements (../shared/DESIGN.md, "The
 //! path-space family"), and the set of strategies a chain chooses from.
 //!
-//! A strategy has `suitable`, `propose` and `transition` side by side: `transition(x̄, ȳ)` is the
-//! density (in the module's measure) with which `propose` from x̄ produces ȳ, computed from the two
-//! paths alone, so that the reverse density is the same function called the other way. The kernel
+//! A strategy has `suitable`, `propose` and `transition` side by side: `transition(x̄, ȳ, change)`
+//! is the density (in the module's measure) with which `propose` from x̄ makes that change and
+//! produces ȳ, computed from the two paths and the change's record, so that the reverse density is
+//! the same function called the other way with the reverse change. The kernel
 //! (the distributions a strategy draws its changes from: deletion and addition lengths for the
 //! bidirectional mutation; direction, lens or stretch kernels for the perturbations of issues
 //! 14–16) is a separate value, handed to both.
@@ -23,6 +24,13 @@ use crate::stats::Counters;
 pub trait Strategy: Send + Sync {
     /// The distributions the strategy draws from (a separate value, see the module docs).
     type Kernel: Send + Sync;
+    /// What a proposal records of the change it made (the bidirectional mutation: which vertices
+    /// it deleted and how many it added), so that the reverse density is that of the reverse change.
+    /// Where a deterministic step (a specular bounce) regenerates a vertex bit for bit, several
+    /// changes can turn x̄ into the same ȳ; the record keeps each change paired with its own
+    /// reverse, which is what detailed balance needs (Metropolis–Hastings with the change as an
+    /// auxiliary choice; Mitsuba's `MutationRecord` does the same).
+    type Move: Copy + Send + Sync;
 
     /// The name in the statistics (`integrator_stats.strategies[].name`).
     fn name(&self) -> &'static str;
@@ -30,8 +38,9 @@ pub trait Strategy: Send + Sync {
     /// Whether the strategy can produce a change of `path` (and so is offered at it).
     fn suitable(&self, ctx: &PathContext, path: &PathState) -> bool;
 
-    /// A proposal from `path`, with f evaluated; None when the generation fails before a complete
-    /// path exists (a ray leaves the scene, a sample fails): a rejection.
+    /// A proposal from `path`, with f evaluated, and the change that made it; None when the
+    /// generation fails before a complete path exists (a ray leaves the scene, a sample fails): a
+    /// rejection.
     fn propose(
         &self,
         ctx: &PathContext,
@@ -39,11 +48,30 @@ pub trait Strategy: Send + Sync {
         kernel: &Self::Kernel,
         rng: &mut Rng,
         counters: &mut Counters,
-    ) -> Option<PathState>;
+    ) -> Option<(PathState, Self::Move)>;
 
-    /// T(from → to): the density of `propose` from `from` producing `to`, in the module's measure
-    /// (0 when it cannot).
-    fn transition(&self, ctx: &PathContext, kernel: &Self::Kernel, from: &PathState, to: &PathState) -> f64;
+    /// T(from → to) by the change `mv`: the density of `propose` from `from` making that change and
+    /// producing `to`, in the module's measure (0 when it cannot). The reverse density is the same
+    /// function, T(to → from) = `transition(to, from, reverse(mv))`.
+    fn transition(
+        &self,
+        ctx: &PathContext,
+        kernel: &Self::Kernel,
+        from: &PathState,
+        to: &PathState,
+        mv: &Self::Move,
+    ) -> f64;
+
+    /// The change that undoes `mv` (from the proposal back to the path it came from).
+    fn reverse(&self, mv: &Self::Move) -> Self::Move;
+}
+
+/// A proposal with its transition densities both ways, for the chain's acceptance.
+pub struct Proposed {
+    pub path: PathState,
+    /// T(x̄ → ȳ) and T(ȳ → x̄); both 0 when f(ȳ) = 0 (the proposal is rejected without them).
+    pub forward: f64,
+    pub reverse: f64,
 }
 
 /// A strategy, its kernel and its selection weight: one entry of a chain's strategy set.
@@ -58,9 +86,8 @@ pub trait Mutation: Send + Sync {
     fn name(&self) -> &'static str;
     fn weight(&self) -> f64;
     fn suitable(&self, ctx: &PathContext, path: &PathState) -> bool;
-    fn propose(&self, ctx: &PathContext, path: &PathState, rng: &mut Rng, counters: &mut Counters)
-        -> Option<PathState>;
-    fn transition(&self, ctx: &PathContext, from: &PathState, to: &PathState) -> f64;
+    /// A proposal from `path` with T both ways (computed only when f(ȳ) > 0).
+    fn propose(&self, ctx: &PathContext, path: &PathState, rng: &mut Rng, counters: &mut Counters) -> Option<Proposed>;
 }
 
 impl<S: Strategy> Mutation for Entry<S> {
@@ -73,17 +100,18 @@ impl<S: Strategy> Mutation for Entry<S> {
     fn suitable(&self, ctx: &PathContext, path: &PathState) -> bool {
         self.strategy.suitable(ctx, path)
     }
-    fn propose(
-        &self,
-        ctx: &PathContext,
-        path: &PathState,
-        rng: &mut Rng,
-        counters: &mut Counters,
-    ) -> Option<PathState> {
-        self.strategy.propose(ctx, path, &self.kernel, rng, counters)
-    }
-    fn transition(&self, ctx: &PathContext, from: &PathState, to: &PathState) -> f64 {
-        self.strategy.transition(ctx, &self.kernel, from, to)
+    fn propose(&self, ctx: &PathContext, path: &PathState, rng: &mut Rng, counters: &mut Counters) -> Option<Proposed> {
+        let (y, mv) = self.strategy.propose(ctx, path, &self.kernel, rng, counters)?;
+        let (forward, reverse) = if y.f_star > 0.0 {
+            let back = self.strategy.reverse(&mv);
+            (
+                self.strategy.transition(ctx, &self.kernel, path, &y, &mv),
+                self.strategy.transition(ctx, &self.kernel, &y, path, &back),
+            )
+        } else {
+            (0.0, 0.0)
+        };
+        Some(Proposed { path: y, forward, reverse })
     }
 }
 

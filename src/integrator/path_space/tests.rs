@@ -93,11 +93,10 @@ fn chi2_of_bidirectional(strategy: Bidirectional, samples: usize) -> Chi2Outcome
     let mut counters = Counters::default();
     let sampler = |rng: &mut Rng| -> Option<[f64; 2]> {
         let mut counters = Counters::default();
-        let y = strategy.propose(&ctx, &x, &kernel, rng, &mut counters)?;
+        let (y, cut) = strategy.propose(&ctx, &x, &kernel, rng, &mut counters)?;
         if y.len() != 4 || !(y.f_star > 0.0) {
             return None;
         }
-        let cut = Bidirectional::find_cut(&x, &y)?;
         if cut != (Cut { l: 1, kd: 2, ka: 2 }) {
             return None;
         }
@@ -116,7 +115,7 @@ fn chi2_of_bidirectional(strategy: Bidirectional, samples: usize) -> Chi2Outcome
         if !(y.f_star > 0.0) {
             return 0.0;
         }
-        let t = strategy.transition(&ctx, &kernel, &x, &y);
+        let t = strategy.transition(&ctx, &kernel, &x, &y, &Cut { l: 1, kd: 2, ka: 2 });
         let d2 = (z.p - a.p).length_squared() as f64;
         let cos_z = z.ng.dot(w).abs() as f64;
         if !(cos_z > 0.0) {
