@@ -10,7 +10,7 @@ use std::time::Instant;
 use clap::Args;
 
 use plexus::integrator::{self, Budget, RenderJob};
-use plexus::scene::{builtin_cornell_box, load_scene};
+use plexus::scene::builtin_cornell_box;
 use plexus::state::{Session, StateError, StateFile};
 
 use super::bad_input;
@@ -72,7 +72,7 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
         ))));
     }
     let loaded = match &scene_path {
-        Some(path) => load_scene(path, Some(accel))?,
+        Some(path) => super::import::load_any(path, Some(accel))?,
         None => builtin_cornell_box(Some(accel))?,
     };
     let camera = &loaded.scene.camera;
@@ -86,7 +86,7 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
         },
     };
     let option = if args.spp.is_some() { "--spp" } else { "--time" };
-    super::check_render_limits(&h.integrator, &params, camera.width, camera.height, budget, option)?;
+    super::check_render_limits(&loaded.scene, &h.integrator, &params, camera.width, camera.height, budget, option)?;
     let checkpoint_every = match args.checkpoint_every {
         Some(s) => {
             Some(std::time::Duration::try_from_secs_f64(s).ok().filter(|d| !d.is_zero()).ok_or_else(|| {

@@ -12,7 +12,7 @@
 //!   depth), the normalised output image (3 × f32 per pixel), one pass of splat buffers (16 bytes a
 //!   contribution, at least one per pixel sample of the pass), and for MLT the bootstrap's targets
 //!   (one f32 plus one f64 of the discrete distribution per bootstrap path and depth) and the
-//!   chains' sub-chains.
+//!   chains' sub-chains (path-space MLT: the chains' paths).
 //!
 //! The estimate is a lower bound: it omits scratch state, so a render it refuses certainly would
 //! not have fitted. The scene is already built when the estimate is checked (mesh readers bound
@@ -54,6 +54,9 @@ impl SceneMemory {
         self.meshes.saturating_add(self.accel).saturating_add(self.lights).saturating_add(self.textures)
     }
 }
+
+/// Bytes of one vertex of a path-space chain's path (`path_space::PathVertex`).
+const PATH_VERTEX_BYTES: u64 = std::mem::size_of::<crate::integrator::path_space::PathVertex>() as u64;
 
 /// The memory of a render: the scene it renders, its film, pass buffers and integrator state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -105,6 +108,18 @@ pub fn render_memory(
     // A pass of the image integrators takes max(1, 2^16 / pixels) samples per pixel; MLT's pass is
     // about one mutation per pixel. Either way at least max(pixels, 2^16) contributions.
     let pass_buffers = mul(pixels.max(MIN_SAMPLES_PER_PASS), SPLAT_BYTES, "a pass's splat buffers")?;
+    if integrator == "pmlt" {
+        // Path-space MLT: one W × H film; the bootstrap's targets; per chain its current path and
+        // a proposal (max_depth + 2 vertices each).
+        let settings = crate::integrator::path_space::PmltSettings::from_params(params)?;
+        let film = mul(pixels, FILM_PIXEL_BYTES, "the film")?;
+        let film = film.checked_add(image).ok_or_else(|| too_large("the film"))?;
+        let bootstrap = mul(settings.bootstrap, BOOTSTRAP_PATH_BYTES, "the bootstrap")?;
+        let path = mul(settings.max_depth as u64 + 2, PATH_VERTEX_BYTES, "a chain's path")?;
+        let chains = mul(mul(settings.chains, 2, "the chains")?, path, "the chains")?;
+        let chains = bootstrap.checked_add(chains).ok_or_else(|| too_large("the chains"))?;
+        return Ok(RenderMemory { scene: SceneMemory::default(), film, pass_buffers, chains });
+    }
     let Some(variant) = variant else {
         let film = mul(pixels, FILM_PIXEL_BYTES, "the film")?;
         let film = film.checked_add(image).ok_or_else(|| too_large("the film"))?;
@@ -203,5 +218,11 @@ mod tests {
         assert_eq!(m.chains, 1000 * 8 * 12 + 10 * 8 * 9 * 128);
         let pssmlt = render_memory("pssmlt", &params, 10, 10).expect("small");
         assert_eq!(pssmlt.film, 100 * 24 + 100 * 12);
+        // pmlt: one film layer, the bootstrap's targets, two paths of max_depth + 2 vertices a chain.
+        let pmlt = render_memory("pmlt", &params, 10, 10).expect("small");
+        assert_eq!(pmlt.film, 100 * 24 + 100 * 12);
+        assert_eq!(pmlt.chains, 1000 * 12 + 10 * 2 * 9 * PATH_VERTEX_BYTES);
+        let huge: toml::Table = toml::from_str("chains = 16777216\nmax_depth = 1024\nbootstrap = 4294967296").expect("toml");
+        assert!(render_memory("pmlt", &huge, 10, 10).expect("counted").total() > 1 << 40);
     }
 }

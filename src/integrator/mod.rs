@@ -6,6 +6,7 @@ pub mod bdpt;
 pub mod driver;
 pub mod light_tracing;
 pub mod memory;
+pub mod path_space;
 pub mod pss;
 pub mod pt;
 
@@ -193,7 +194,7 @@ pub trait Integrator: Send + Sync {
 }
 
 /// The names `create` accepts, in the order `plexus render --help` lists them.
-pub const INTEGRATOR_NAMES: &[&str] = &["pt", "bdpt", "light", "pssmlt", "mmlt", "rjmlt"];
+pub const INTEGRATOR_NAMES: &[&str] = &["pt", "bdpt", "light", "pssmlt", "mmlt", "rjmlt", "pmlt"];
 
 /// The integrator called `name`, configured from `params` (the scene's `[integrator]` table merged
 /// with `--set` overrides; unknown keys are errors).
@@ -205,6 +206,7 @@ pub fn create(name: &str, params: &toml::Table) -> Result<Box<dyn Integrator>, R
         "pssmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Pssmlt, params)?)),
         "mmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Mmlt, params)?)),
         "rjmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Rjmlt, params)?)),
+        "pmlt" => Ok(Box::new(path_space::Pmlt::from_params(params)?)),
         other => Err(RenderError::UnknownIntegrator(other.to_string())),
     }
 }

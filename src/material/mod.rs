@@ -300,6 +300,20 @@ impl Material {
             .map_or(Rgb::ZERO, |t| self.delta_weight(t, wo, mode))
     }
 
+    /// Selection probability α_t of the delta lobe that maps `wo` to `wi` (within
+    /// `DELTA_DIRECTION_TOLERANCE`), zero if none does: the discrete mass `sample` reports as the
+    /// `pdf` of a delta lobe. Path-space integrators use it as a specular vertex's share of a
+    /// transition density (delta-stripped measure, `integrator::path_space`).
+    pub fn pdf_delta(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if !valid_pair(wo, wi) {
+            return 0.0;
+        }
+        let probs = self.lobe_probabilities(wo);
+        (0..self.lobe_count())
+            .find(|&t| self.lobe_is_delta(t) && self.delta_matches(t, wo, wi))
+            .map_or(0.0, |t| probs[t])
+    }
+
     /// The uniforms `u` that `sample` maps to `wi`, with the lobe choice and Jacobian the
     /// reversible-jump acceptance needs (RJMLT Sec. 6). `gamma` are fresh uniforms for the
     /// ambiguous parts (see `BSDF_INVERT_DIMS`):

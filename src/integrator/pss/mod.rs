@@ -1,5 +1,6 @@
 //! Primary-sample-space Markov chain methods: the shared Kelemen sampler, PSSMLT, MMLT and RJMLT.
 
+pub mod bootstrap;
 pub mod inverse;
 pub mod jump;
 pub mod mlt;

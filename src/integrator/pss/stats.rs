@@ -174,6 +174,62 @@ impl JumpStats {
     }
 }
 
+/// Path-space MLT: the proposals of one mutation strategy (`integrator::path_space`), so that
+/// every strategy a render ran says how often it was chosen, how often it produced a path and how
+/// often that path was taken.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct StrategyStats {
+    pub name: String,
+    /// Iterations that chose the strategy (among the strategies suitable for the current path).
+    pub selected: u64,
+    /// Of those, the proposals that failed before a path existed (a ray escaped, a sample failed,
+    /// the new path would be too long): rejected without an evaluation.
+    pub generation_failures: u64,
+    /// Proposals with a non-zero contribution f(ȳ) (the rest are rejected: a = 0).
+    pub nonzero_proposals: u64,
+    /// Proposals accepted (the Metropolis coin), and the sum of their acceptance probabilities
+    /// (what expected-value splatting weights the proposals by).
+    pub accepted: u64,
+    pub acceptance_probability_sum: f64,
+    /// Per depth (scattering events) of the current path: the strategy's proposals and their
+    /// acceptance; serialised as proposals and rate.
+    #[serde(serialize_with = "per_depth_counts")]
+    pub per_depth: Vec<AcceptanceCount>,
+    /// Derived by `finish`: accepted / selected and the mean acceptance probability (null without
+    /// selections).
+    pub acceptance: Option<f64>,
+    pub mean_acceptance_probability: Option<f64>,
+}
+
+impl StrategyStats {
+    pub fn new(name: &str, depths: usize) -> StrategyStats {
+        StrategyStats { name: name.to_string(), per_depth: vec![AcceptanceCount::default(); depths], ..Default::default() }
+    }
+
+    fn merge(&mut self, o: &StrategyStats) {
+        self.selected += o.selected;
+        self.generation_failures += o.generation_failures;
+        self.nonzero_proposals += o.nonzero_proposals;
+        self.accepted += o.accepted;
+        self.acceptance_probability_sum += o.acceptance_probability_sum;
+        for (a, b) in self.per_depth.iter_mut().zip(&o.per_depth) {
+            a.merge(b);
+        }
+    }
+
+    /// The strategy's proposals as a move type (for the render-wide totals).
+    fn as_moves(&self) -> MoveStats {
+        MoveStats {
+            proposals: self.selected,
+            accepted: self.accepted,
+            nonzero_proposals: self.nonzero_proposals,
+            paths_evaluated: self.selected,
+            paths_nonzero: self.nonzero_proposals,
+            ..MoveStats::default()
+        }
+    }
+}
+
 /// Everything a PSSMLT, MMLT or RJMLT render reports besides the image and the shared counters.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct MltStats {
@@ -197,6 +253,9 @@ pub struct MltStats {
     pub moves: MoveTypes,
     /// RJMLT only.
     pub jumps: Option<JumpStats>,
+    /// Path-space MLT only: per mutation strategy (null for the primary-sample-space methods,
+    /// whose `moves` are then zero: a path-space proposal is neither a large nor a small step).
+    pub strategies: Option<Vec<StrategyStats>>,
     pub per_depth: Vec<DepthStats>,
     pub warnings: Vec<String>,
 }
@@ -236,6 +295,11 @@ impl MltStats {
         self.moves.small.merge(&o.moves.small);
         merge_option(&mut self.moves.jump, &o.moves.jump, MoveStats::merge);
         merge_option(&mut self.jumps, &o.jumps, JumpStats::merge);
+        merge_option(&mut self.strategies, &o.strategies, |a, b| {
+            for (x, y) in a.iter_mut().zip(b) {
+                x.merge(y);
+            }
+        });
     }
 
     /// Derives the rates and totals from the merged counts, with the b_d of the image.
@@ -252,6 +316,12 @@ impl MltStats {
         let mut all = MoveStats::default();
         for m in self.moves.all() {
             all.merge(m);
+        }
+        for strategy in self.strategies.iter_mut().flatten() {
+            all.merge(&strategy.as_moves());
+            strategy.acceptance = ratio(strategy.accepted, strategy.selected);
+            strategy.mean_acceptance_probability =
+                (strategy.selected > 0).then(|| strategy.acceptance_probability_sum / strategy.selected as f64);
         }
         self.mutations = all.proposals;
         self.mutations_per_pixel = all.proposals as f64 / pixels.max(1) as f64;
@@ -306,6 +376,17 @@ fn proposals_and_rate<S: Serializer>(a: &Option<AcceptanceCount>, s: S) -> Resul
         acceptance: Option<f64>,
     }
     a.map(|a| ProposalsAndRate { proposals: a.proposed, acceptance: (a.proposed > 0).then(|| a.rate()) }).serialize(s)
+}
+
+fn per_depth_counts<S: Serializer>(counts: &[AcceptanceCount], s: S) -> Result<S::Ok, S::Error> {
+    #[derive(Serialize)]
+    struct ProposalsAndRate {
+        proposals: u64,
+        acceptance: Option<f64>,
+    }
+    s.collect_seq(
+        counts.iter().map(|a| ProposalsAndRate { proposals: a.proposed, acceptance: (a.proposed > 0).then(|| a.rate()) }),
+    )
 }
 
 fn failures_by_name<S: Serializer>(counts: &[u64; 5], s: S) -> Result<S::Ok, S::Error> {

@@ -13,6 +13,7 @@ use super::{PathState, SUBCHAIN_SEED_SALT};
 use crate::film::Accumulator;
 use crate::integrator::driver::{state_film, Driver, PassBoundary, PassSet, Passes, RunStart, Slot};
 use crate::integrator::pss::sampler::PssSampler;
+use crate::integrator::pss::bootstrap::run_bootstrap;
 use crate::integrator::pss::stats::{MltStats, MoveStats};
 use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::{Distribution1D, Rng};
@@ -325,56 +326,32 @@ impl Mlt {
         same_everywhere: bool,
     ) -> Result<(BootstrapPart, Counters, Option<StartDistributions>), RenderError> {
         let depths = self.depth_count();
-        // The first round runs one batch per depth; under a time budget the remaining rounds are
-        // capped so that the bootstrap takes at most BOOTSTRAP_SHARE of the budget (large steps
-        // keep refining b during the render, so a shorter bootstrap costs accuracy of the start
-        // only, not correctness).
-        progress.message("bootstrap");
-        const BATCH: u64 = 4096;
-        const BOOTSTRAP_SHARE: f64 = 0.25;
-        let n_requested = self.settings.bootstrap;
-        let batches_per_depth = n_requested.div_ceil(BATCH);
-        let run_batches = |rounds: std::ops::Range<u64>| {
-            let batches: Vec<(usize, u64, Vec<f32>)> =
-                (0..depths).flat_map(|d| rounds.clone().map(move |b| (d, b, Vec::new()))).collect();
-            driver.run(
-                batches,
-                Passes::Count(1),
-                progress,
-                |_| self.new_slot(0, 0),
-                |_, (d, b, targets), slot| {
-                    let start = *b * BATCH;
-                    let end = (start + BATCH).min(n_requested);
-                    for i in start..end {
-                        let mut sampler = self.bootstrap_sampler(job.seed, *d, i);
-                        sampler.start_iteration_with(true);
-                        let st = self.evaluate(ctx, *d, &mut sampler, None, &mut slot.state, &mut slot.counters);
-                        targets.push(st.target);
-                    }
-                    0
-                },
-                None,
-            )
+        // `bootstrap::run_bootstrap`: under a time budget it takes at most a quarter of the budget
+        // (large steps keep refining b during the render, so a shorter bootstrap costs accuracy of
+        // the start only, not correctness) — except in a shard, whose bootstrap must be the same
+        // in every shard.
+        let time_budget = match job.budget {
+            Budget::Seconds(s) if !same_everywhere => Some(s),
+            _ => None,
         };
-        let first = run_batches(0..1);
-        let rounds = match job.budget {
-            Budget::Seconds(s) if !same_everywhere => {
-                let round = first.elapsed.as_secs_f64().max(1e-6);
-                let affordable = ((BOOTSTRAP_SHARE * s - round) / round).floor().max(0.0) as u64;
-                batches_per_depth.min(1 + affordable)
-            }
-            _ => batches_per_depth,
-        };
-        let rest = run_batches(1..rounds);
-        let n_boot = n_requested.min(rounds * BATCH);
-        let mut counters = first.counters;
-        counters.merge(&rest.counters);
-        let seconds = (first.elapsed + rest.elapsed).as_secs_f64();
-        let mut targets: Vec<Vec<f32>> = vec![Vec::with_capacity(n_boot as usize); depths];
-        for (d, _, t) in first.units.into_iter().chain(rest.units) {
-            targets[d].extend(t);
-        }
-        let sums: Vec<f64> = targets.iter().map(|t| t.iter().map(|&x| x as f64).sum()).collect();
+        let boot = run_bootstrap(
+            driver,
+            progress,
+            depths,
+            self.settings.bootstrap,
+            time_budget,
+            |_| self.new_slot(0, 0),
+            |d, i, slot, counters| {
+                let mut sampler = self.bootstrap_sampler(job.seed, d, i);
+                sampler.start_iteration_with(true);
+                self.evaluate(ctx, d, &mut sampler, None, slot, counters).target
+            },
+        );
+        let n_boot = boot.paths;
+        let counters = boot.counters;
+        let seconds = boot.elapsed.as_secs_f64();
+        let targets = boot.targets;
+        let sums = boot.sums;
         let b_total: f64 = sums.iter().map(|s| s / n_boot as f64).sum();
         let mut warnings: Vec<String> = Vec::new();
         if !(b_total > 0.0) {

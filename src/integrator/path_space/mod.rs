@@ -1,0 +1,54 @@
+//! Path-space Metropolis light transport (Veach & Guibas 1997; the portal paper's Sec. 3 and the
+//! ensemble paper's Sec. 2.3 summarise it): Markov chains whose state is a light path itself,
+//! mutated vertex by vertex. `integrator = "pmlt"` runs many such chains started from a BDPT
+//! bootstrap (`chain`); the bidirectional mutation (`bidirectional`) is its first strategy, and
+//! Veach's perturbations (issue 14), the portal perturbation (issue 15) and the ensemble-guided
+//! kernels (issue 16) are further strategies on the same chain (`strategy`).
+//!
+//! # State
+//! A path x̄ = x_0 … x_{n−1} is its vertex list, pinhole first and emitter last (`state`): each
+//! vertex with position, geometric normal and shading frame, material or emitter, and interaction
+//! kind (camera, diffuse, glossy, specular, emitter), plus the raster position where its first
+//! edge meets the film and its contribution f(x̄). An environment emitter is a vertex at infinity:
+//! its direction, measured in solid angle.
+//!
+//! # Measure (used everywhere in this module)
+//! The path measure is the product of the area measures of x_1 … x_{n−1} (solid angle for a vertex
+//! at infinity); the pinhole is a fixed point and contributes no measure. Specular vertices follow
+//! BDPT's **delta-stripped convention**: a specular vertex x_i contributes F/|cos θ_i| to f (the
+//! lobe's weight over the cosine towards x_{i+1}, so that f_s·|cos| = F) and its lobe's selection
+//! probability to a transition density in place of a directional density; every edge's geometric
+//! factor is in both f and T, so edges a mutation traced cancel in f/T and only its connection
+//! edges remain, as in BDPT's C = f/p. So f and T are densities with respect to the same
+//! (delta-stripped) measure and their ratio in the acceptance is well defined. The measure of the
+//! image is the whole film: pixel j's value is P·∫ 1_j(x̄) f(x̄) dμ(x̄) (P pixels), as BDPT's
+//! whole-film sampling of primary-sample-space MLT normalises it.
+//!
+//! # Contribution
+//! `contribution::evaluate` computes f(x̄) from the vertices alone, visibility included, for every
+//! proposal of every strategy: there is one f.
+
+pub mod bidirectional;
+pub mod chain;
+pub mod contribution;
+pub mod density;
+pub mod settings;
+pub mod state;
+pub mod strategy;
+#[cfg(test)]
+mod tests;
+
+pub use chain::{Pmlt, PmltRun};
+pub use settings::PmltSettings;
+pub use state::{Interaction, PathState, PathVertex};
+pub use strategy::{Entry, Mutation, Strategy, StrategySet};
+
+use crate::scene::Scene;
+
+/// What every strategy and the contribution function need: the scene and the longest path allowed
+/// (`max_depth` scattering events, max_depth + 2 vertices).
+#[derive(Clone, Copy)]
+pub struct PathContext<'a> {
+    pub scene: &'a Scene,
+    pub max_depth: usize,
+}

@@ -1,0 +1,94 @@
+//! The bootstrap every Markov chain integrator starts from (PSSMLT, MMLT, RJMLT and path-space MLT):
+//! up to `requested` independent samples per depth slot, each evaluated by the integrator's own
+//! `sample(depth, index, ...)` from a stream of its own (so a chain can later replay the sample it
+//! starts from exactly), run in batches over the driver's pool. The mean target per depth is the
+//! normalisation b_d (MMLT paper Sec. 4, "Initialization"; Veach 1997 Sec. 4 for path space), and
+//! the targets are kept so that chains can be started ∝ target.
+
+use std::time::Duration;
+
+use crate::integrator::driver::{Driver, Passes};
+use crate::integrator::Progress;
+use crate::stats::Counters;
+
+/// Bootstrap samples per batch (a work unit of the driver).
+pub const BATCH: u64 = 4096;
+/// Under a time budget, the bootstrap takes at most this share of it (after one batch per depth,
+/// which always runs): the chains matter more than a precise start.
+pub const BOOTSTRAP_SHARE: f64 = 0.25;
+
+/// What a bootstrap produced.
+pub struct BootstrapRun {
+    /// Per depth slot, the target of every sample in sample order.
+    pub targets: Vec<Vec<f32>>,
+    /// Per depth slot, the sum of the targets (f64, summed in sample order).
+    pub sums: Vec<f64>,
+    /// Samples per depth slot actually taken (≤ `requested` under a time budget).
+    pub paths: u64,
+    pub counters: Counters,
+    pub elapsed: Duration,
+}
+
+impl BootstrapRun {
+    /// b_d of every depth slot: the mean target.
+    pub fn b(&self) -> Vec<f64> {
+        self.sums.iter().map(|s| s / self.paths.max(1) as f64).collect()
+    }
+}
+
+/// Runs the bootstrap: `depths` slots of up to `requested` samples each; `sample(d, i, state,
+/// counters)` evaluates sample `i` of slot `d` and returns its target. The first round runs one
+/// batch per slot; under a time budget of `time_budget` seconds the remaining rounds are capped so
+/// that the bootstrap takes at most `BOOTSTRAP_SHARE` of it. Deterministic for a sample budget:
+/// every sample has its own stream and the batches are merged in order.
+pub fn run_bootstrap<S: Send + Sync>(
+    driver: &Driver,
+    progress: &dyn Progress,
+    depths: usize,
+    requested: u64,
+    time_budget: Option<f64>,
+    init_slot: impl Fn(usize) -> S,
+    sample: impl Fn(usize, u64, &mut S, &mut Counters) -> f32 + Sync,
+) -> BootstrapRun {
+    progress.message("bootstrap");
+    let batches_per_depth = requested.div_ceil(BATCH);
+    let run_batches = |rounds: std::ops::Range<u64>| {
+        let batches: Vec<(usize, u64, Vec<f32>)> =
+            (0..depths).flat_map(|d| rounds.clone().map(move |b| (d, b, Vec::new()))).collect();
+        driver.run(
+            batches,
+            Passes::Count(1),
+            progress,
+            &init_slot,
+            |_, (d, b, targets), slot| {
+                let start = *b * BATCH;
+                let end = (start + BATCH).min(requested);
+                for i in start..end {
+                    targets.push(sample(*d, i, &mut slot.state, &mut slot.counters));
+                }
+                0
+            },
+            None,
+        )
+    };
+    let first = run_batches(0..1);
+    let rounds = match time_budget {
+        Some(s) => {
+            let round = first.elapsed.as_secs_f64().max(1e-6);
+            let affordable = ((BOOTSTRAP_SHARE * s - round) / round).floor().max(0.0) as u64;
+            batches_per_depth.min(1 + affordable)
+        }
+        None => batches_per_depth,
+    };
+    let rest = run_batches(1..rounds);
+    let paths = requested.min(rounds * BATCH);
+    let mut counters = first.counters;
+    counters.merge(&rest.counters);
+    let elapsed = first.elapsed + rest.elapsed;
+    let mut targets: Vec<Vec<f32>> = vec![Vec::with_capacity(paths as usize); depths];
+    for (d, _, t) in first.units.into_iter().chain(rest.units) {
+        targets[d].extend(t);
+    }
+    let sums = targets.iter().map(|t| t.iter().map(|&x| x as f64).sum()).collect();
+    BootstrapRun { targets, sums, paths, counters, elapsed }
+}

@@ -1,0 +1,126 @@
+//! Path-space MLT (`integrator = "pmlt"`, the bidirectional mutation) against the path tracer, and
+//! its determinism and black-scene behaviour. The transition density and the path-length shares are
+//! tested inside the library (`integrator::path_space::tests`), where the wrong variants can be
+//! switched on.
+//!
+//! # Agreement
+//! As for the primary-sample-space methods (tests/mlt.rs explains it; tests/common/agreement.rs
+//! states the bounds): with expected-value splatting the image mean is b, so the **region shares**
+//! (4×4 regions, region mean ÷ the render's image mean) of 16 renders test the chain against 16
+//! path-traced renders, by Welch's z with |z| < 5 and a power check (a 10% error of any region's
+//! share holding at least a quarter of the average share must reach |z| = 5); the **brightness**
+//! (image mean, with a 5% power check) tests b, which pmlt takes from its BDPT bootstrap alone.
+//! Few chains (8) with many mutations each, so that the chains' stationary distribution, not the
+//! resampled bootstrap they start from, makes the image.
+
+use std::path::Path;
+
+mod common;
+use common::agreement::{assert_brightness_agrees, assert_shares_agree, render_regions, RENDERS};
+use common::binary::{plexus, stderr, temp_dir, tiny_scene};
+
+use plexus::camera::Camera;
+use plexus::film::Image;
+use plexus::integrator::{create, Budget, NoProgress, RenderJob};
+use plexus::scene::{load_scene, Scene};
+
+fn scene(name: &str, size: u32) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));
+    let mut scene = load_scene(&path, None).unwrap_or_else(|e| panic!("{}: {e}", path.display())).scene;
+    let c = &scene.camera;
+    scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, size, size);
+    scene
+}
+
+fn render(scene: &Scene, params: &str, mpp: u64, seed: u64, threads: usize) -> (Image, serde_json::Value) {
+    let params: toml::Table = toml::from_str(params).expect("test parameters");
+    let integrator = create("pmlt", &params).expect("integrator");
+    let job = RenderJob { budget: Budget::SamplesPerPixel(mpp), seed, threads };
+    let out = integrator.render(scene, &job, &NoProgress).expect("render");
+    (out.image, out.extra_stats)
+}
+
+/// 8 chains; a bootstrap of 50,000 BDPT samples (pmlt's b comes from it alone, and the brightness
+/// test's power check needs its per-render spread below 4%).
+const PARAMS: &str = "max_depth = 8\nbootstrap = 50000\nchains = 8";
+/// Mutations per pixel of the 32×32 renders (32,768 per chain at 256).
+const MUTATIONS_PER_PIXEL: u64 = 256;
+
+/// pmlt's region shares and brightness against the path tracer's on `name` at 32×32.
+fn pmlt_agrees_with_pt(name: &str) {
+    let scene = scene(name, 32);
+    let reference = render_regions(&scene, "pt", "max_depth = 8", 256, 3, RENDERS);
+    let params = std::env::var("PMLT_PARAMS").unwrap_or(PARAMS.to_string()).replace(';', "\n");
+    let mpp = std::env::var("PMLT_MPP").map(|s| s.parse().unwrap()).unwrap_or(MUTATIONS_PER_PIXEL);
+    let t0 = std::time::Instant::now();
+    let renders = render_regions(&scene, "pmlt", &params, mpp, 3, RENDERS);
+    println!("pmlt renders {:?}", t0.elapsed());
+    let what = format!("pmlt vs pt on {name}");
+    let (_, vm) = common::agreement::mean_and_variance_of_mean(&common::agreement::shares(&renders));
+    let (_, vr) = common::agreement::mean_and_variance_of_mean(&common::agreement::shares(&reference));
+    println!("{what}: se pmlt {:?}\nse pt {:?}", vm.iter().map(|v| v.sqrt()).collect::<Vec<_>>(), vr.iter().map(|v| v.sqrt()).collect::<Vec<_>>());
+    assert_shares_agree(&what, &renders, &reference);
+    assert_brightness_agrees(&what, &renders, &reference);
+}
+
+#[test]
+fn pmlt_agrees_with_pt_on_cornell_box() {
+    pmlt_agrees_with_pt("cornell-box");
+}
+
+#[test]
+fn pmlt_agrees_with_pt_on_cornell_glossy() {
+    pmlt_agrees_with_pt("cornell-glossy");
+}
+
+#[test]
+fn pmlt_agrees_with_pt_on_cornell_glass() {
+    pmlt_agrees_with_pt("cornell-glass");
+}
+
+/// Same seed and thread count: the same bits; another thread count too (chains are the driver's
+/// units, applied in unit order); another seed: another image.
+#[test]
+fn pmlt_is_deterministic() {
+    let scene = scene("cornell-glass", 16);
+    let params = "bootstrap = 2000\nchains = 32";
+    let bits = |img: &Image| img.pixels.iter().map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+    let a = render(&scene, params, 8, 5, 2).0;
+    let b = render(&scene, params, 8, 5, 2).0;
+    let c = render(&scene, params, 8, 5, 1).0;
+    let d = render(&scene, params, 8, 6, 2).0;
+    assert_eq!(bits(&a), bits(&b));
+    assert_eq!(bits(&a), bits(&c));
+    assert_ne!(bits(&a), bits(&d));
+}
+
+/// A scene whose only emitter faces away from everything renders black, with the warning on stderr
+/// (and in the JSON), exit 0.
+#[test]
+fn pmlt_on_a_black_scene_is_black_with_a_warning_on_stderr() {
+    let dir = temp_dir("pmlt-black");
+    // The lamp turned to face up, into empty space: no path reaches the camera.
+    let text = tiny_scene("[8, 8]", "").replace("angle = 90 }, translate = [0.0, 2.0, 0.0]", "angle = -90 }, translate = [0.0, 2.0, 0.0]");
+    std::fs::write(dir.path().join("black.toml"), text).expect("write scene");
+    let out = plexus(
+        &["render", "black.toml", "--integrator", "pmlt", "--spp", "2", "--set", "bootstrap=2000", "--set", "chains=4", "-o", "black.exr"],
+        dir.path(),
+    );
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("warning: no bootstrap path"), "no warning on stderr: {err}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("black.json")).expect("json")).expect("parse");
+    assert!(!json["integrator_stats"]["warnings"].as_array().expect("warnings").is_empty());
+    assert_eq!(json["image_mean"].as_array().map(|m| m.iter().all(|v| v.as_f64() == Some(0.0))), Some(true), "{json}");
+}
+
+/// Bad settings are refused with the setting's name (exit 2 at the CLI), before any work.
+#[test]
+fn pmlt_settings_are_validated() {
+    for (params, needle) in [("max_depth = 2000", "max_depth"), ("chains = 0", "chains"), ("sigma = 0.1", "sigma")] {
+        let table: toml::Table = toml::from_str(params).expect("toml");
+        let err = create("pmlt", &table).err().unwrap_or_else(|| panic!("accepted {params}")).to_string();
+        assert!(err.contains(needle), "{params}: {err}");
+    }
+}
