@@ -14,7 +14,9 @@
 //! A wrong variant fails it: plexus at half the depth. With scripts/crosscheck.py (256 spp × 8
 //! renders per side) the right depth measured a largest |diff|/bound of 0.36 on the Cornell box and
 //! 0.21 on the lamp scene, half the depth 1.81 and 6.71 (image means −5.6% and −23.7%);
-//! `half_depth_fails_on_the_cornell_box` below checks that at this test's own budget.
+//! `half_depth_fails_on_the_cornell_box` below checks that at this test's own budget (64 spp × 8
+//! renders, seeds 7919·k): measured 1.84 there, against 0.39 (Cornell box) and 0.44 (lamp) for the
+//! right depth.
 
 use std::path::Path;
 

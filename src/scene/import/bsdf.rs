@@ -139,6 +139,17 @@ impl<'a> Materials<'a> {
             _ => {}
         }
         self.leaf(o, sec, w)?;
+        // Light passes through a dielectric from both sides already; plexus's dielectric takes no
+        // `two_sided` (Mitsuba, too, warns against wrapping one in `twosided`).
+        if sec.entries.iter().any(|(k, v)| k == "type" && *v == TVal::str("dielectric")) && sec.remove("two_sided") {
+            w.warn(
+                &o.loc,
+                format!(
+                    "{} inside twosided: the wrapper is dropped (a dielectric is two-sided by nature)",
+                    o.describe()
+                ),
+            );
+        }
         for p in o.unused() {
             w.warn(&p.loc, format!("parameter '{}' of {} is not supported and was ignored", p.name, o.describe()));
         }

@@ -181,8 +181,9 @@ fn bsdfs_map_to_plexus_materials() {
   <bsdf type="conductor" id="k"><rgb name="eta" value="1.5, 1, 0.5"/><rgb name="k" value="9 6 4"/><rgb name="specularReflectance" value="0.5"/><float name="wobble" value="3"/></bsdf>
   <bsdf type="plastic" id="l"><rgb name="specularReflectance" value="0.5"/></bsdf>
   <bsdf type="hanrahan_krueger" id="m"/>
+  <bsdf type="twosided" id="n"><bsdf type="dielectric"/></bsdf>
 "##;
-    let shapes: String = "abcdefghijklm"
+    let shapes: String = "abcdefghijklmn"
         .chars()
         .map(|c| {
             format!("<shape type=\"obj\"><string name=\"filename\" value=\"tri.obj\"/><ref id=\"{c}\"/></shape>\n")
@@ -209,6 +210,7 @@ fn bsdfs_map_to_plexus_materials() {
     let l = m("l");
     assert_eq!((f(&l["roughness"]), f(&l["specular"])), (0.0, 0.5));
     assert_eq!(m("m")["type"].as_str(), Some("diffuse"));
+    assert!(!m("n").contains_key("two_sided"), "plexus's dielectric takes no two_sided");
     let lines = i.warnings.lines().join("\n");
     for (at, needle) in [
         ("id=\"a\"", "'beckmann' rendered as GGX"),
@@ -220,6 +222,7 @@ fn bsdfs_map_to_plexus_materials() {
         ("id=\"k\"", "folded into its normal-incidence colour"),
         ("id=\"k\"", "'wobble'"),
         ("id=\"m\"", "'hanrahan_krueger' is not supported"),
+        ("id=\"n\"><bsdf", "the wrapper is dropped"),
     ] {
         let line = line_of(&xml, at);
         let hit =

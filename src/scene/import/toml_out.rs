@@ -96,6 +96,12 @@ impl Section {
     pub fn new(header: impl Into<String>) -> Section {
         Section { header: header.into(), ..Default::default() }
     }
+    /// Removes `k`, returning whether it was there.
+    pub fn remove(&mut self, k: &str) -> bool {
+        let before = self.entries.len();
+        self.entries.retain(|(key, _)| key != k);
+        self.entries.len() != before
+    }
     pub fn set(&mut self, k: &str, v: TVal) {
         match self.entries.iter_mut().find(|(key, _)| key == k) {
             Some(slot) => slot.1 = v,
