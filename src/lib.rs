@@ -22,3 +22,4 @@ pub mod scene;
 pub mod spectrum;
 pub mod state;
 pub mod stats;
+pub mod texture;

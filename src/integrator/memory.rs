@@ -44,8 +44,7 @@ pub struct SceneMemory {
     pub accel: u64,
     /// Light distributions and environment texels.
     pub lights: u64,
-    /// Image textures' texels. No material takes a texture yet: this is their place (texels ×
-    /// channels × bytes per channel, plus any mip levels), filled by `Scene::memory`.
+    /// Image textures' texels (each shared image once; `Scene::texture_memory_bytes`).
     pub textures: u64,
 }
 

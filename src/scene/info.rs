@@ -32,6 +32,12 @@ pub struct SceneFeatures {
     /// Materials used by at least one shape, by kind.
     pub materials_by_kind: BTreeMap<&'static str, usize>,
     pub triangles: usize,
+    /// Used materials with a textured colour parameter, with an opacity below 1, and two-sided.
+    pub textured_materials: usize,
+    pub masked_materials: usize,
+    pub two_sided_materials: usize,
+    /// Bytes held by texture images (0 without textures: nothing is built).
+    pub texture_bytes: usize,
 }
 
 /// The image environment's size and its 2D distribution's cell count.
@@ -68,6 +74,7 @@ pub struct MemoryEstimate {
     pub meshes: usize,
     pub accel: usize,
     pub lights: usize,
+    /// Texture images (each shared image once).
     pub textures: usize,
     pub total: usize,
 }
@@ -79,6 +86,7 @@ pub fn material_kind(m: &Material) -> &'static str {
         Material::Mirror { .. } => "mirror",
         Material::Dielectric { .. } => "dielectric",
         Material::RoughConductor { .. } => "conductor",
+        Material::RoughDielectric { .. } => "dielectric",
         Material::RoughPlastic { .. } => "plastic",
     }
 }
@@ -112,13 +120,28 @@ impl Scene {
             diffuse_materials: used
                 .iter()
                 .any(|m| matches!(m, Material::Diffuse { .. } | Material::RoughPlastic { .. })),
-            glossy_materials: used
-                .iter()
-                .any(|m| matches!(m, Material::RoughConductor { .. } | Material::RoughPlastic { .. })),
+            glossy_materials: used.iter().any(|m| {
+                matches!(
+                    m,
+                    Material::RoughConductor { .. } | Material::RoughPlastic { .. } | Material::RoughDielectric { .. }
+                )
+            }),
             specular_materials: used.iter().any(|m| m.is_specular()),
             materials_by_kind: count_kinds(&used),
             triangles: self.triangle_count(),
+            textured_materials: self.used_surfaces().filter(|m| m.is_textured()).count(),
+            masked_materials: self.used_surfaces().filter(|m| m.is_masked()).count(),
+            two_sided_materials: self.used_surfaces().filter(|m| m.two_sided).count(),
+            texture_bytes: self.texture_memory_bytes(),
         }
+    }
+
+    fn used_surfaces(&self) -> impl Iterator<Item = &crate::material::SurfaceMaterial> {
+        self.materials
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| self.shapes.iter().any(|s| s.material as usize == *i))
+            .map(|(_, m)| m)
     }
 
     fn used_materials(&self) -> Vec<&Material> {
@@ -126,7 +149,7 @@ impl Scene {
         for s in &self.shapes {
             used[s.material as usize] = true;
         }
-        self.materials.iter().zip(used).filter(|(_, u)| *u).map(|(m, _)| m).collect()
+        self.materials.iter().zip(used).filter(|(_, u)| *u).map(|(m, _)| &m.template).collect()
     }
 }
 
@@ -165,8 +188,7 @@ impl Scene {
             meshes: meshes as u64,
             accel: self.accel.memory_bytes() as u64,
             lights: lights as u64,
-            // Image textures (wt-materials): the bytes of their texels belong here.
-            textures: 0,
+            textures: self.texture_memory_bytes() as u64,
         }
     }
 }
@@ -186,7 +208,7 @@ pub fn scene_info(scene: &Scene) -> SceneInfo {
         area_lights: scene.lights.iter().filter(|l| matches!(l, Light::Area(_))).count(),
         environment,
         materials: scene.materials.len(),
-        materials_by_kind: count_kinds(&scene.materials.iter().collect::<Vec<_>>()),
+        materials_by_kind: count_kinds(&scene.materials.iter().map(|m| &m.template).collect::<Vec<_>>()),
         portals: scene.portals.len(),
         bounds_min: scene.bounds.min.to_array(),
         bounds_max: scene.bounds.max.to_array(),
