@@ -70,6 +70,11 @@ impl Bsdf {
         let (wo, wi) = self.oriented(wo, wi);
         self.material.eval_delta(wo, wi, mode)
     }
+    /// `Material::pdf_delta` under the side rule.
+    pub fn pdf_delta(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let (wo, wi) = self.oriented(wo, wi);
+        self.material.pdf_delta(wo, wi)
+    }
     /// `Material::invert` under the side rule (the uniforms are those `sample` uses).
     pub fn invert(
         &self,

@@ -20,7 +20,6 @@
 //! as the driver's render model asks, and every stream derives from (seed, chain index), so the
 //! image depends on the seed and the chain count only (not on the threads).
 
-
 use super::bidirectional::{Bidirectional, LengthKernel};
 use super::settings::PmltSettings;
 use super::state::PathState;
@@ -294,7 +293,14 @@ impl Pmlt {
                 for _ in 0..START_ATTEMPTS {
                     let (i, _, _) = start.sample_discrete(rng.uniform());
                     candidates.clear();
-                    self.bootstrap_sample(&bctx, job.seed, i as u64, &mut init_slot, &mut init_counters, Some(&mut candidates));
+                    self.bootstrap_sample(
+                        &bctx,
+                        job.seed,
+                        i as u64,
+                        &mut init_slot,
+                        &mut init_counters,
+                        Some(&mut candidates),
+                    );
                     let weights: Vec<f32> = candidates.iter().map(|c| c.1).collect();
                     if weights.is_empty() {
                         continue;
@@ -392,7 +398,8 @@ impl Pmlt {
         if let Some(map) = extra.as_object_mut() {
             map.insert("b".into(), serde_json::json!(b));
         }
-        let output = RenderOutput { image, layers: Vec::new(), counters, wall_time: render_start.elapsed(), extra_stats: extra };
+        let output =
+            RenderOutput { image, layers: Vec::new(), counters, wall_time: render_start.elapsed(), extra_stats: extra };
         Ok(PmltRun { output, film: out.film })
     }
 }

@@ -76,7 +76,7 @@ pub fn evaluate(ctx: &PathContext, path: &[PathVertex], counters: &mut Counters)
             let prev = &path[i - 1].vertex;
             let wo = a.frame.to_local(a.dir_to(prev));
             let wi = a.frame.to_local(dir);
-            let material = &scene.materials[a.material as usize];
+            let material = a.bsdf(scene);
             let fs = if material.is_specular() {
                 let cos = wi.z.abs();
                 if !(cos > 0.0) {

@@ -85,7 +85,7 @@ pub fn sample_next(
             if from.infinite {
                 return None;
             }
-            let material = &scene.materials[from.material as usize];
+            let material = from.bsdf(scene);
             let wo = from.frame.to_local(from.dir_to(prev));
             let u = [rng.uniform(), rng.uniform(), rng.uniform()];
             let bs = material.sample(wo, u, side.mode())?;
@@ -117,7 +117,7 @@ pub fn density_next(scene: &Scene, from: &Vertex, prev: Option<&Vertex>, next: &
             if from.infinite {
                 return 0.0;
             }
-            let material = &scene.materials[from.material as usize];
+            let material = from.bsdf(scene);
             let wo = from.frame.to_local(from.dir_to(prev));
             let wi = from.frame.to_local(from.dir_to(next));
             if material.is_specular() {

@@ -49,7 +49,9 @@ pub fn material_interaction(material: &Material) -> Interaction {
     match material {
         Material::Diffuse { .. } => Interaction::Diffuse,
         Material::Mirror { .. } | Material::Dielectric { .. } => Interaction::Specular,
-        Material::RoughConductor { .. } | Material::RoughPlastic { .. } => Interaction::Glossy,
+        Material::RoughConductor { .. } | Material::RoughPlastic { .. } | Material::RoughDielectric { .. } => {
+            Interaction::Glossy
+        }
     }
 }
 
@@ -76,7 +78,7 @@ pub fn with_role(scene: &Scene, mut v: Vertex, index: usize, n: usize) -> PathVe
             // Only an endpoint can be at infinity; `evaluate` gives such a path f = 0.
             Interaction::Emitter
         } else {
-            material_interaction(&scene.materials[v.material as usize])
+            material_interaction(&scene.materials[v.material as usize].template)
         }
     };
     PathVertex { vertex: v, interaction }

@@ -149,7 +149,8 @@ fn bidirectional_transition_matches_the_proposal_density() {
     let right = chi2_of_bidirectional(Bidirectional::default(), 200_000);
     println!("right T: {}", right.message);
     for omit in [0, 1] {
-        let wrong = chi2_of_bidirectional(Bidirectional { omit_split: Some(omit), ..Bidirectional::default() }, 200_000);
+        let wrong =
+            chi2_of_bidirectional(Bidirectional { omit_split: Some(omit), ..Bidirectional::default() }, 200_000);
         println!("without split s' = {omit}: {}", wrong.message);
         assert!(!wrong.passed, "a T without split s' = {omit} passed: {}", wrong.message);
     }
@@ -175,7 +176,8 @@ fn furnace_shares(strategy: Bidirectional, chains: u64, iterations: u64, max_dep
             let si = scene.intersect(&camera).expect("the furnace is closed");
             let first = Vertex::surface(&scene, &si, -camera.d, Rgb::ONE, TransportMode::Radiance);
             let pinhole = Vertex::camera(camera.o, Rgb::ONE);
-            let vertices: Vec<_> = [pinhole, first].iter().enumerate().map(|(i, v)| with_role(&scene, *v, i, 2)).collect();
+            let vertices: Vec<_> =
+                [pinhole, first].iter().enumerate().map(|(i, v)| with_role(&scene, *v, i, 2)).collect();
             let mut current = PathState::from_path_vertices(&ctx, vertices, &mut counters);
             assert!(current.f_star > 0.0);
             let mut film = SplatBuffer::new(16, 16);
@@ -225,7 +227,8 @@ fn furnace_path_length_shares_follow_the_closed_form() {
     let right = furnace_shares(Bidirectional::default(), 16, 12_000, max_depth);
     let (z, report) = furnace_z(&right, max_depth);
     println!("right T: worst |z| = {z:.2}\n{report}");
-    let wrong = furnace_shares(Bidirectional { omit_addition_pmf: true, ..Bidirectional::default() }, 16, 12_000, max_depth);
+    let wrong =
+        furnace_shares(Bidirectional { omit_addition_pmf: true, ..Bidirectional::default() }, 16, 12_000, max_depth);
     let (zw, report_w) = furnace_z(&wrong, max_depth);
     println!("without p_a: worst |z| = {zw:.2}\n{report_w}");
     assert!(zw >= 5.0, "the wrong T passed: |z| = {zw:.2}\n{report_w}");

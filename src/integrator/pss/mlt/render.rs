@@ -12,8 +12,8 @@ use super::{Bootstrap, ChainUnit, Mlt, MltRun, SlotState, SubChain, CHAIN_SEED_S
 use super::{PathState, SUBCHAIN_SEED_SALT};
 use crate::film::Accumulator;
 use crate::integrator::driver::{state_film, Driver, PassBoundary, PassSet, Passes, RunStart, Slot};
-use crate::integrator::pss::sampler::PssSampler;
 use crate::integrator::pss::bootstrap::run_bootstrap;
+use crate::integrator::pss::sampler::PssSampler;
 use crate::integrator::pss::stats::{MltStats, MoveStats};
 use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::{Distribution1D, Rng};
