@@ -423,8 +423,12 @@ impl Mlt {
         slot: &SlotState,
         units: &[ChainUnit],
     ) -> Result<MltPart, StateError> {
+        let (mut stats, count_films) = (slot.stats.clone(), slot.count_films.clone());
+        // The slot-order f64 sums depend on the threads; a state's bytes must not (shards).
+        for (depth, (sum, _)) in stats.per_depth.iter_mut().zip(self.large_step_totals(units)) {
+            depth.large_step_target_sum = sum;
+        }
         let units = units.iter().map(|u| Ok((u.index, u.save()?))).collect::<Result<Vec<_>, StateError>>()?;
-        let (stats, count_films) = (slot.stats.clone(), slot.count_films.clone());
         Ok(MltPart { bootstrap: boot.clone(), segment, stats, count_films, units })
     }
 
