@@ -290,7 +290,7 @@ fn unknown_key_names_line_table_and_expected_keys() {
     let (file, msg) = load_err(&dir, &text);
     assert_eq!(
         msg,
-        format!("{file}: materials.red: key 'ior' does not apply to type 'diffuse' (expected: type, reflectance)")
+        format!("{file}: materials.red: key 'ior' does not apply to type 'diffuse' (expected: type, reflectance, two_sided, opacity)")
     );
 }
 
