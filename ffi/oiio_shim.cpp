@@ -1,10 +1,11 @@
-// C interface to OpenImageIO's writer (see oiio_shim.h). Every entry point catches every C++
+// C interface to OpenImageIO's writer and reader (see oiio_shim.h). Every entry point catches every C++
 // exception: unwinding into Rust is undefined behaviour.
 
 #include "oiio_shim.h"
 
 #include <OpenImageIO/imageio.h>
 
+#include <cctype>
 #include <cstring>
 #include <exception>
 #include <initializer_list>
@@ -115,6 +116,50 @@ int can_write(const char *filename, char *msg, size_t msg_len) {
     return PLX_OK;
 }
 
+int read_info(const char *path, plx_image_info *info, char *msg, size_t msg_len) {
+    if (path == nullptr || info == nullptr) {
+        return fail(msg, msg_len, PLX_ERR_ARGUMENT, "null path or info");
+    }
+    auto in = OIIO::ImageInput::open(path);
+    if (!in) {
+        return fail(msg, msg_len, PLX_ERR_OPEN, global_error());
+    }
+    const OIIO::ImageSpec &spec = in->spec();
+    info->width = spec.width;
+    info->height = spec.height;
+    info->channels = spec.nchannels;
+    info->is_float = spec.format.is_floating_point() ? 1 : 0;
+    std::string cs = spec.get_string_attribute("oiio:ColorSpace");
+    for (auto &c : cs) {
+        c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    }
+    info->color_space = cs == "srgb" ? 1 : (cs == "linear" || cs == "scene_linear" || cs == "lin_srgb") ? 2 : 0;
+    in->close();
+    return PLX_OK;
+}
+
+int read_image(const char *path, int width, int height, int channels, float *data, char *msg, size_t msg_len) {
+    if (path == nullptr || data == nullptr || width <= 0 || height <= 0 || channels <= 0) {
+        return fail(msg, msg_len, PLX_ERR_ARGUMENT, "null path or buffer, or a non-positive size");
+    }
+    auto in = OIIO::ImageInput::open(path);
+    if (!in) {
+        return fail(msg, msg_len, PLX_ERR_OPEN, global_error());
+    }
+    const OIIO::ImageSpec &spec = in->spec();
+    if (spec.width != width || spec.height != height || spec.nchannels != channels) {
+        in->close();
+        return fail(msg, msg_len, PLX_ERR_ARGUMENT, "the image changed size while being read");
+    }
+    if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, data)) {
+        std::string e = in->geterror();
+        in->close();
+        return fail(msg, msg_len, PLX_ERR_WRITE, e);
+    }
+    in->close();
+    return PLX_OK;
+}
+
 }  // namespace
 
 extern "C" int plx_oiio_write_image(const char *path, int width, int height, int channels, int data_type,
@@ -133,6 +178,31 @@ extern "C" int plx_oiio_write_image(const char *path, int width, int height, int
 extern "C" int plx_oiio_can_write(const char *filename, char *msg, size_t msg_len) noexcept {
     try {
         return can_write(filename, msg, msg_len);
+    } catch (const std::exception &e) {
+        set_message_raw(msg, msg_len, "C++ exception: ", e.what());
+        return PLX_ERR_EXCEPTION;
+    } catch (...) {
+        set_message_raw(msg, msg_len, "unknown C++ exception", nullptr);
+        return PLX_ERR_EXCEPTION;
+    }
+}
+
+extern "C" int plx_oiio_read_info(const char *path, plx_image_info *info, char *msg, size_t msg_len) noexcept {
+    try {
+        return read_info(path, info, msg, msg_len);
+    } catch (const std::exception &e) {
+        set_message_raw(msg, msg_len, "C++ exception: ", e.what());
+        return PLX_ERR_EXCEPTION;
+    } catch (...) {
+        set_message_raw(msg, msg_len, "unknown C++ exception", nullptr);
+        return PLX_ERR_EXCEPTION;
+    }
+}
+
+extern "C" int plx_oiio_read_image(const char *path, int width, int height, int channels, float *data, char *msg,
+                                   size_t msg_len) noexcept {
+    try {
+        return read_image(path, width, height, channels, data, msg, msg_len);
     } catch (const std::exception &e) {
         set_message_raw(msg, msg_len, "C++ exception: ", e.what());
         return PLX_ERR_EXCEPTION;

@@ -1,4 +1,4 @@
-/* A small C interface to OpenImageIO's image writer, for Rust.
+/* A small C interface to OpenImageIO's image writer and reader, for Rust.
  *
  * Every function returns PLX_OK (0) or one of the error codes below and, on error, writes a
  * NUL-terminated message into `msg` (truncated to `msg_len` bytes, `msg` may be NULL when
@@ -41,6 +41,30 @@ int plx_oiio_write_image(const char *path, int width, int height, int channels, 
 /* PLX_OK if OpenImageIO has a writer for the extension of `filename` (nothing is opened or
  * created), PLX_ERR_FORMAT otherwise. */
 int plx_oiio_can_write(const char *filename, char *msg, size_t msg_len) PLX_NOEXCEPT;
+
+/* What `plx_oiio_read_info` reports about an image file. */
+struct plx_image_info {
+    int width;
+    int height;
+    int channels;
+    /* 1 if the file stores floating-point (half, float, double) pixels, 0 for integers. */
+    int is_float;
+    /* 1 if the file says its pixels are sRGB-encoded ("oiio:ColorSpace" sRGB), 2 if it says
+     * linear, 0 if it says neither. */
+    int color_space;
+};
+
+/* Opens `path` and reports the size, channel count and encoding of its first subimage.
+ * Errors: PLX_ERR_FORMAT (no reader, or not an image), PLX_ERR_OPEN. */
+int plx_oiio_read_info(const char *path, struct plx_image_info *info, char *msg, size_t msg_len) PLX_NOEXCEPT;
+
+/* Reads the first subimage of `path` as 32-bit floats, row 0 at the top, `channels` interleaved
+ * channels per pixel, into `data` (width*height*channels floats, `width`/`height` as
+ * `plx_oiio_read_info` reported them; a size that no longer matches is PLX_ERR_ARGUMENT). Integer
+ * formats are normalised to [0, 1]; no colour conversion is made. Errors: PLX_ERR_OPEN,
+ * PLX_ERR_WRITE (reading the pixels failed). */
+int plx_oiio_read_image(const char *path, int width, int height, int channels, float *data, char *msg,
+                        size_t msg_len) PLX_NOEXCEPT;
 
 #ifdef __cplusplus
 }

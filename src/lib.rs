@@ -19,3 +19,4 @@ pub mod sampling;
 pub mod scene;
 pub mod spectrum;
 pub mod stats;
+pub mod texture;

@@ -1,4 +1,5 @@
-//! Writing images through OpenImageIO (the C shim in ffi/oiio_shim.cpp).
+//! Writing (and, for textures, reading) images through OpenImageIO (the C shim in
+//! ffi/oiio_shim.cpp).
 //!
 //! The format follows the file extension. Floating-point formats (`.exr`, `.hdr`, `.tif`/`.tiff`,
 //! `.pfm`) receive the linear image unchanged: `.exr` as 32-bit float, or half with
@@ -36,6 +37,104 @@ extern "C" {
         msg_len: usize,
     ) -> c_int;
     fn plx_oiio_can_write(filename: *const c_char, msg: *mut c_char, msg_len: usize) -> c_int;
+    fn plx_oiio_read_info(path: *const c_char, info: *mut PlxImageInfo, msg: *mut c_char, msg_len: usize) -> c_int;
+    fn plx_oiio_read_image(
+        path: *const c_char,
+        width: c_int,
+        height: c_int,
+        channels: c_int,
+        data: *mut f32,
+        msg: *mut c_char,
+        msg_len: usize,
+    ) -> c_int;
+}
+
+/// `struct plx_image_info` of ffi/oiio_shim.h.
+#[repr(C)]
+#[derive(Default)]
+struct PlxImageInfo {
+    width: c_int,
+    height: c_int,
+    channels: c_int,
+    is_float: c_int,
+    color_space: c_int,
+}
+
+/// Most texels a texture may have (2^28: 3 GiB of RGB floats), so a corrupt or hostile header
+/// cannot ask for an absurd allocation.
+pub const MAX_READ_TEXELS: usize = 1 << 28;
+
+/// An image read from a file: float channels as stored (integers normalised to [0, 1]), row 0 at
+/// the top.
+#[derive(Clone, Debug)]
+pub struct ReadImage {
+    pub width: usize,
+    pub height: usize,
+    pub channels: usize,
+    /// width·height·channels values, interleaved.
+    pub data: Vec<f32>,
+    /// Whether the file stores floating-point pixels.
+    pub is_float: bool,
+    /// What the file says about its encoding: Some(true) sRGB, Some(false) linear, None silent.
+    pub srgb: Option<bool>,
+}
+
+/// Why an image could not be read.
+#[derive(Debug, Error)]
+pub enum ImageReadError {
+    #[error("cannot read image '{path}': the path contains a NUL byte or is not valid text")]
+    InvalidPath { path: PathBuf },
+    #[error("cannot read image '{path}': OpenImageIO: {message}")]
+    Oiio { path: PathBuf, message: String },
+    #[error("cannot read image '{path}': it is {width}x{height} with {channels} channels; expected a non-empty image of at most 2^28 texels")]
+    BadSize { path: PathBuf, width: i64, height: i64, channels: i64 },
+}
+
+/// Reads the first subimage of `path` through OpenImageIO (any format it reads: PNG, JPEG, EXR,
+/// TGA, HDR, TIFF, ...).
+pub fn read_image(path: &Path) -> Result<ReadImage, ImageReadError> {
+    let c = c_path(path).map_err(|_| ImageReadError::InvalidPath { path: path.to_path_buf() })?;
+    let mut msg = [0u8; 1024];
+    let mut info = PlxImageInfo::default();
+    // SAFETY: `c` is NUL-terminated, `info` and `msg` are valid for writes of their sizes.
+    let status = unsafe { plx_oiio_read_info(c.as_ptr(), &mut info, msg.as_mut_ptr().cast(), msg.len()) };
+    if status != PLX_OK {
+        return Err(ImageReadError::Oiio { path: path.to_path_buf(), message: message(&msg) });
+    }
+    let (w, h, ch) = (i64::from(info.width), i64::from(info.height), i64::from(info.channels));
+    let bad = || ImageReadError::BadSize { path: path.to_path_buf(), width: w, height: h, channels: ch };
+    if w <= 0 || h <= 0 || !(1..=64).contains(&ch) {
+        return Err(bad());
+    }
+    let texels = (w as usize).checked_mul(h as usize).filter(|&n| n <= MAX_READ_TEXELS).ok_or_else(bad)?;
+    let mut data = vec![0.0f32; texels * ch as usize];
+    // SAFETY: `data` holds width·height·channels floats, the size the shim checks against the file.
+    let status = unsafe {
+        plx_oiio_read_image(
+            c.as_ptr(),
+            info.width,
+            info.height,
+            info.channels,
+            data.as_mut_ptr(),
+            msg.as_mut_ptr().cast(),
+            msg.len(),
+        )
+    };
+    if status != PLX_OK {
+        return Err(ImageReadError::Oiio { path: path.to_path_buf(), message: message(&msg) });
+    }
+    Ok(ReadImage {
+        width: w as usize,
+        height: h as usize,
+        channels: ch as usize,
+        data,
+        is_float: info.is_float != 0,
+        srgb: match info.color_space {
+            1 => Some(true),
+            2 => Some(false),
+            _ => None,
+        },
+    })
 }
 
 /// Why an image could not be written (or an output path was refused up front).

@@ -20,6 +20,7 @@
 
 mod area;
 mod environment;
+pub mod sunsky;
 
 pub use area::{
     invert_emission_direction, invert_mesh_point, invert_triangle_point, pdf_emission_direction, pdf_mesh_point,

@@ -4,22 +4,32 @@
 //! them. A material's lobe probabilities come from one helper that `sample`, `pdf` and `invert`
 //! all call, so they cannot drift apart.
 
+mod bsdf;
 mod conductor;
 mod dielectric;
 mod diffuse;
 mod fresnel;
 pub mod microfacet;
 mod plastic;
+mod rough_dielectric;
 mod specular;
+mod surface;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_surface;
+#[cfg(test)]
+mod tests_transmission;
 
+pub use bsdf::Bsdf;
 pub use fresnel::{conductor_index_from_colours, fresnel_conductor, fresnel_dielectric, FresnelDielectric};
 pub use microfacet::{Ggx, ALPHA_MIN};
+pub use surface::{ColourSlot, Opacity, SurfaceMaterial};
 
 /// Lobe indices (`BsdfSample::lobe`, `BsdfInverse::lobe`) of the two-lobe materials.
 pub use dielectric::{REFLECT as DIELECTRIC_REFLECT, REFRACT as DIELECTRIC_REFRACT};
-pub use plastic::{DIFFUSE as PLASTIC_DIFFUSE, SPECULAR as PLASTIC_SPECULAR};
+pub use plastic::{Plastic, DIFFUSE as PLASTIC_DIFFUSE, SPECULAR as PLASTIC_SPECULAR};
+pub use rough_dielectric::{REFLECT as ROUGH_DIELECTRIC_REFLECT, TRANSMIT as ROUGH_DIELECTRIC_TRANSMIT};
 
 use serde::Serialize;
 
@@ -61,7 +71,7 @@ pub enum TransportMode {
 }
 
 /// A material, with parameters as the scene file gives them (validated).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum Material {
     /// Lambertian reflection.
@@ -74,8 +84,11 @@ pub enum Material {
     /// GGX microfacet conductor; `alpha` is the GGX width (Mitsuba's `alpha`), `eta`/`k` the
     /// complex index of refraction per channel.
     RoughConductor { alpha: f32, eta: Rgb, k: Rgb },
-    /// Diffuse base under a GGX-rough dielectric coating of index `ior` (a two-lobe mixture).
-    RoughPlastic { diffuse: Rgb, alpha: f32, ior: f32 },
+    /// GGX rough dielectric interface (Walter et al. 2007): rough reflection and transmission,
+    /// `ior` inside/outside as for `Dielectric`.
+    RoughDielectric { alpha: f32, ior: f32 },
+    /// Diffuse base under a GGX-rough dielectric coating (Mitsuba's plastic; a two-lobe mixture).
+    RoughPlastic { alpha: f32, plastic: Plastic },
 }
 
 /// A direction drawn from a BSDF.
@@ -125,7 +138,6 @@ pub struct BsdfInverse {
 impl Material {
     /// f(wo, wi), without the cosine factor; zero for delta lobes and for invalid configurations.
     pub fn eval(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> Rgb {
-        let _ = mode;
         if !valid_pair(wo, wi) {
             return Rgb::ZERO;
         }
@@ -133,8 +145,9 @@ impl Material {
             Material::Diffuse { reflectance } => diffuse::eval(reflectance, wo, wi),
             Material::Mirror { .. } | Material::Dielectric { .. } => Rgb::ZERO,
             Material::RoughConductor { alpha, eta, k } => conductor::eval(&Ggx::new(alpha), eta, k, wo, wi),
-            Material::RoughPlastic { diffuse, alpha, ior } => {
-                plastic::eval_specular(&Ggx::new(alpha), ior, wo, wi) + plastic::eval_diffuse(diffuse, ior, wo, wi)
+            Material::RoughDielectric { alpha, ior } => rough_dielectric::eval(&Ggx::new(alpha), ior, wo, wi, mode),
+            Material::RoughPlastic { alpha, plastic } => {
+                plastic::eval_specular(&Ggx::new(alpha), &plastic, wo, wi) + plastic::eval_diffuse(&plastic, wo, wi)
             }
         }
     }
@@ -173,7 +186,8 @@ impl Material {
         if !(pdf > 0.0) || !pdf.is_finite() {
             return None;
         }
-        Some(BsdfSample { wi, f: self.eval(wo, wi, mode), pdf, delta: false, lobe: t as u8, eta: 1.0 })
+        let eta = self.lobe_eta(t, wo);
+        Some(BsdfSample { wi, f: self.eval(wo, wi, mode), pdf, delta: false, lobe: t as u8, eta })
     }
     /// Whether every lobe is a delta (mirror, smooth dielectric): no light-source connection can
     /// be made at such a vertex.
@@ -189,7 +203,7 @@ impl Material {
     pub fn lobe_count(&self) -> usize {
         match self {
             Material::Diffuse { .. } | Material::Mirror { .. } | Material::RoughConductor { .. } => 1,
-            Material::Dielectric { .. } | Material::RoughPlastic { .. } => 2,
+            Material::Dielectric { .. } | Material::RoughDielectric { .. } | Material::RoughPlastic { .. } => 2,
         }
     }
 
@@ -200,7 +214,8 @@ impl Material {
         match *self {
             Material::Diffuse { .. } | Material::Mirror { .. } | Material::RoughConductor { .. } => [1.0, 0.0],
             Material::Dielectric { ior } => dielectric::lobe_probabilities(ior, wo),
-            Material::RoughPlastic { diffuse, ior, .. } => plastic::lobe_probabilities(diffuse, ior, wo),
+            Material::RoughDielectric { ior, .. } => rough_dielectric::lobe_probabilities(ior, wo),
+            Material::RoughPlastic { plastic, .. } => plastic::lobe_probabilities(&plastic, wo),
         }
     }
 
@@ -216,6 +231,7 @@ impl Material {
             Material::Diffuse { .. } => diffuse::sample(wo, u),
             Material::Mirror { .. } => specular::sample(wo),
             Material::Dielectric { ior } => dielectric::sample(ior, t, wo),
+            Material::RoughDielectric { alpha, ior } => rough_dielectric::sample(&Ggx::new(alpha), ior, t, wo, u),
             Material::RoughConductor { alpha, .. } => {
                 (wo.z > 0.0).then(|| Ggx::new(alpha).sample_reflection(wo, u)).flatten().map(|(wi, _)| wi)
             }
@@ -235,6 +251,7 @@ impl Material {
             Material::Diffuse { .. } => diffuse::pdf(wo, wi),
             Material::Mirror { .. } | Material::Dielectric { .. } => 0.0,
             Material::RoughConductor { alpha, .. } => Ggx::new(alpha).pdf_reflection(wo, wi),
+            Material::RoughDielectric { alpha, ior } => rough_dielectric::pdf(&Ggx::new(alpha), ior, t, wo, wi),
             Material::RoughPlastic { alpha, .. } => {
                 if t == plastic::SPECULAR {
                     Ggx::new(alpha).pdf_reflection(wo, wi)
@@ -251,6 +268,7 @@ impl Material {
             Material::Diffuse { .. } => diffuse::invert(wo, wi),
             Material::Mirror { .. } | Material::Dielectric { .. } => None,
             Material::RoughConductor { alpha, .. } => Ggx::new(alpha).invert_reflection(wo, wi),
+            Material::RoughDielectric { alpha, ior } => rough_dielectric::invert(&Ggx::new(alpha), ior, t, wo, wi),
             Material::RoughPlastic { alpha, .. } => {
                 if t == plastic::SPECULAR {
                     Ggx::new(alpha).invert_reflection(wo, wi)
@@ -283,6 +301,7 @@ impl Material {
     fn lobe_eta(&self, t: usize, wo: Vec3) -> f32 {
         match *self {
             Material::Dielectric { ior } => dielectric::eta(ior, t, wo),
+            Material::RoughDielectric { ior, .. } => rough_dielectric::eta(ior, t, wo),
             _ => 1.0,
         }
     }

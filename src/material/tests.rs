@@ -23,7 +23,7 @@ const MODE: TransportMode = TransportMode::Radiance;
 
 /// Unit direction at polar angle `theta_deg`, azimuth `phi` (radians); the azimuth is generic so
 /// that nothing lines up with the frame's axes.
-fn dir(theta_deg: f32, phi: f32) -> Vec3 {
+pub(super) fn dir(theta_deg: f32, phi: f32) -> Vec3 {
     let t = f64::from(theta_deg).to_radians();
     let p = f64::from(phi);
     DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()).as_vec3()
@@ -35,14 +35,14 @@ fn conductor(alpha: f32) -> Material {
 }
 
 fn plastic(alpha: f32) -> Material {
-    Material::RoughPlastic { diffuse: Rgb::new(0.8, 0.5, 0.2), alpha, ior: 1.5 }
+    Material::RoughPlastic { alpha, plastic: Plastic::new(Rgb::new(0.8, 0.5, 0.2), Rgb::ONE, 1.5, false) }
 }
 
-fn rng_u3(rng: &mut Rng) -> [f32; 3] {
+pub(super) fn rng_u3(rng: &mut Rng) -> [f32; 3] {
     [rng.uniform(), rng.uniform(), rng.uniform()]
 }
 
-fn rng_u4(rng: &mut Rng) -> [f32; 4] {
+pub(super) fn rng_u4(rng: &mut Rng) -> [f32; 4] {
     [rng.uniform(), rng.uniform(), rng.uniform(), rng.uniform()]
 }
 
@@ -51,7 +51,7 @@ fn rng_u4(rng: &mut Rng) -> [f32; 4] {
 /// a = |w − c|²/2 = 1 − cos θ' ∈ [0, 2], s = ln(1 + a (K − 1)/2) / ln K ∈ [0, 1], φ' the azimuth
 /// about c. dω = da dφ', so the density in (s, φ') is pdf(w) · da/ds. With K = 1e8 the first of 24
 /// radial bins ends at θ' ≈ 2e-4 rad.
-struct CapParam {
+pub(super) struct CapParam {
     c: DVec3,
     s: DVec3,
     t: DVec3,
@@ -60,7 +60,7 @@ struct CapParam {
 }
 
 impl CapParam {
-    fn new(c: Vec3) -> CapParam {
+    pub(super) fn new(c: Vec3) -> CapParam {
         let c = c.as_dvec3().normalize();
         // Duff et al. 2017 orthonormal basis, in f64.
         let sign = 1.0f64.copysign(c.z);
@@ -71,7 +71,7 @@ impl CapParam {
         let k = 1e8f64;
         CapParam { c, s, t, ln_k: k.ln(), k }
     }
-    fn to_param(&self, w: Vec3) -> Option<[f64; 2]> {
+    pub(super) fn to_param(&self, w: Vec3) -> Option<[f64; 2]> {
         let d = w.as_dvec3();
         if !d.is_finite() || (d.length() - 1.0).abs() > 1e-4 {
             return None;
@@ -85,7 +85,7 @@ impl CapParam {
         Some([s, phi])
     }
     /// Direction and da/ds at parameter p.
-    fn direction_at(&self, p: [f64; 2]) -> (Vec3, f64) {
+    pub(super) fn direction_at(&self, p: [f64; 2]) -> (Vec3, f64) {
         let ks = (p[0] * self.ln_k).exp();
         let a = 2.0 * (ks - 1.0) / (self.k - 1.0);
         let da_ds = 2.0 * self.ln_k * ks / (self.k - 1.0);
@@ -99,7 +99,7 @@ impl CapParam {
 /// 24×24 bins of ~100 expected samples each: a bin mass wrong by 1e-6 moves its expectation by
 /// 0.06, so the quadrature needs no tighter tolerance than that (1e-7 and 10 bisections, 8× slower,
 /// moved no χ² statistic of the 32 material tests by more than 0.3).
-fn chi2_cfg() -> Chi2Config {
+pub(super) fn chi2_cfg() -> Chi2Config {
     Chi2Config {
         res: [24, 24],
         samples: 60_000,
@@ -269,7 +269,7 @@ fn delta_lobes_have_their_discrete_probabilities() {
 
 /// Distance between direction uniforms, the second taken modulo 1 (the GGX warp's polar map has a
 /// seam at u[2] = 0 ≡ 1; the cosine warp has none, where this changes nothing).
-fn u_dist(a: [f32; 2], b: [f32; 2]) -> f32 {
+pub(super) fn u_dist(a: [f32; 2], b: [f32; 2]) -> f32 {
     let d1 = (a[1] - b[1]).abs();
     (a[0] - b[0]).abs().max(d1.min(1.0 - d1))
 }
@@ -433,7 +433,7 @@ fn inverted_uniforms_are_distributed_as_sampled() {
     let out = chi2_1d(&cfg, [0.0, 1.0], 40, |rng| invert_once(&dielectric, wo, rng).map(|u| f64::from(u[0])), |_| 1.0);
     assert!(out.passed, "dielectric u[0]: {}", out.message);
 
-    let dark = Material::RoughPlastic { diffuse: Rgb::splat(0.3), alpha: 0.5, ior: 1.5 };
+    let dark = Material::RoughPlastic { alpha: 0.5, plastic: Plastic::new(Rgb::splat(0.3), Rgb::ONE, 1.5, false) };
     for (i, (m, wo)) in [(plastic(0.3), dir(45.0, 0.7)), (dark, dir(60.0, 0.7))].into_iter().enumerate() {
         let [ps, pd] = m.lobe_probabilities(wo);
         let succ = specular_success_probability(&m, wo);
@@ -542,7 +542,7 @@ fn direction_maps_have_jacobian_one_over_pdf() {
 /// cos θi ≲ α). Measured against 8 bisections (up to 50× slower), every albedo of
 /// `energy_is_conserved` agrees within 1e-5: far inside the 1e-4 and 2e-4 the tests allow for
 /// quadrature.
-fn albedo_quadrature(m: &Material, wo: Vec3, mode: TransportMode) -> Rgb {
+pub(super) fn albedo_quadrature(m: &Material, wo: Vec3, mode: TransportMode) -> Rgb {
     let cap = CapParam::new(fresnel::reflect_z(wo));
     let channel = |c: usize| {
         crate::sampling::chi2::integrate_2d_to(
@@ -628,6 +628,13 @@ fn pdfs_integrate_to_the_sampling_success_rate() {
 /// Energy: ∫ f cos dωi ≤ 1 for every material with its most reflective parameters (white base,
 /// near-perfect conductor), = ρ for diffuse; delta lobes' weights sum to ≤ 1 (importance mode,
 /// where refraction carries no 1/η² radiance scaling). Quadrature error is below 1e-4 here.
+///
+/// The plastic is Mitsuba's model, whose white linear base has albedo exactly 1 − F(cos θo) while
+/// its rough coat reflects ∫ F(wo·h) D G …, which for a narrow lobe at 45° exceeds F(cos θo)
+/// slightly (F is evaluated at the microfacet, not the macro normal): the sum is over 1 by the
+/// model, not by quadrature. Measured worst excess 4.2e-4 (α = 0.05, 45°); the plastic's bound is
+/// 1 + 1e-3. (Mitsuba's rough plastic uses a tabulated rough transmittance instead of 1 − F;
+/// the difference is this excess.)
 #[test]
 fn energy_is_conserved() {
     for &theta in &ANGLES {
@@ -638,10 +645,12 @@ fn energy_is_conserved() {
         for &alpha in &ALPHAS {
             for m in [
                 Material::conductor_from_colour(alpha, Rgb::splat(0.9999)),
-                Material::RoughPlastic { diffuse: Rgb::ONE, alpha, ior: 1.5 },
+                Material::RoughPlastic { alpha, plastic: Plastic::new(Rgb::ONE, Rgb::ONE, 1.5, false) },
+                Material::RoughPlastic { alpha, plastic: Plastic::new(Rgb::ONE, Rgb::ONE, 1.5, true) },
             ] {
                 let a = albedo_quadrature(&m, wo, MODE);
-                assert!(a.max_element() <= 1.0 + 1e-4, "{m:?} at {theta}°: albedo {a:?}");
+                let bound = if matches!(m, Material::RoughPlastic { .. }) { 1.0 + 1e-3 } else { 1.0 + 1e-4 };
+                assert!(a.max_element() <= bound, "{m:?} at {theta}°: albedo {a:?}");
                 assert!(a.min_element() > 0.0);
             }
         }

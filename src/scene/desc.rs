@@ -55,14 +55,22 @@ fn default_up() -> [f32; 3] {
 pub struct MaterialDesc {
     #[serde(rename = "type")]
     pub kind: String,
-    pub reflectance: Option<ColorDesc>,
+    pub reflectance: Option<ColourParam>,
     pub ior: Option<f32>,
     pub roughness: Option<f32>,
     pub eta: Option<ColorDesc>,
     pub k: Option<ColorDesc>,
     #[serde(alias = "color")]
-    pub colour: Option<ColorDesc>,
-    pub diffuse: Option<ColorDesc>,
+    pub colour: Option<ColourParam>,
+    pub diffuse: Option<ColourParam>,
+    /// Plastic: the coating's tint (Mitsuba's specularReflectance).
+    pub specular: Option<ColourParam>,
+    /// Plastic: Mitsuba's `nonlinear` base model.
+    pub nonlinear: Option<bool>,
+    /// The back side behaves as the front (Mitsuba's `twosided`).
+    pub two_sided: Option<bool>,
+    /// 1 opaque (default) … 0 invisible (Mitsuba's `mask`).
+    pub opacity: Option<ColourParam>,
 }
 
 impl MaterialDesc {
@@ -81,7 +89,64 @@ impl MaterialDesc {
         push(self.k.is_some(), "k");
         push(self.colour.is_some(), "colour");
         push(self.diffuse.is_some(), "diffuse");
+        push(self.specular.is_some(), "specular");
+        push(self.nonlinear.is_some(), "nonlinear");
+        push(self.two_sided.is_some(), "two_sided");
+        push(self.opacity.is_some(), "opacity");
         keys
+    }
+}
+
+/// A colour parameter: a number, `[r, g, b]`, or a texture table.
+#[derive(Debug, Clone)]
+pub enum ColourParam {
+    Constant(ColorDesc),
+    Texture(TextureDesc),
+}
+
+/// `{ texture = "bitmap", file = "...", uscale, vscale, srgb }` or
+/// `{ texture = "checkerboard", colour0, colour1, uscale, vscale }`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TextureDesc {
+    pub texture: String,
+    pub file: Option<String>,
+    pub uscale: Option<f32>,
+    pub vscale: Option<f32>,
+    pub srgb: Option<bool>,
+    #[serde(alias = "color0")]
+    pub colour0: Option<ColorDesc>,
+    #[serde(alias = "color1")]
+    pub colour1: Option<ColorDesc>,
+}
+
+impl<'de> Deserialize<'de> for ColourParam {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        const EXPECTING: &str =
+            "a number, [r, g, b] or a texture table { texture = \"bitmap\" | \"checkerboard\", ... }";
+        impl<'de> Visitor<'de> for V {
+            type Value = ColourParam;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str(EXPECTING)
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<ColourParam, E> {
+                Triple(EXPECTING).visit_f64(v).map(|c| ColourParam::Constant(ColorDesc(c)))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<ColourParam, E> {
+                Triple(EXPECTING).visit_i64(v).map(|c| ColourParam::Constant(ColorDesc(c)))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<ColourParam, E> {
+                Triple(EXPECTING).visit_u64(v).map(|c| ColourParam::Constant(ColorDesc(c)))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<ColourParam, A::Error> {
+                Triple(EXPECTING).visit_seq(seq).map(|c| ColourParam::Constant(ColorDesc(c)))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<ColourParam, A::Error> {
+                TextureDesc::deserialize(de::value::MapAccessDeserializer::new(map)).map(ColourParam::Texture)
+            }
+        }
+        d.deserialize_any(V)
     }
 }
 
@@ -235,6 +300,13 @@ pub struct EnvironmentDesc {
     pub file: Option<String>,
     pub scale: Option<f32>,
     pub rotate: Option<Rotations>,
+    /// `sunsky`, `sun`, `sky`: unit direction towards the sun (y up).
+    pub sun_direction: Option<[f32; 3]>,
+    pub turbidity: Option<f32>,
+    /// Ground albedo (below the horizon).
+    pub albedo: Option<f32>,
+    pub sun_scale: Option<f32>,
+    pub sky_scale: Option<f32>,
 }
 
 /// One `[[portals]]` entry: `corner`, `edge_u`, `edge_v`, or a unit quad placed by `transform`.

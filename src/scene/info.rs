@@ -31,6 +31,12 @@ pub struct SceneFeatures {
     /// Materials used by at least one shape, by kind.
     pub materials_by_kind: BTreeMap<&'static str, usize>,
     pub triangles: usize,
+    /// Used materials with a textured colour parameter, with an opacity below 1, and two-sided.
+    pub textured_materials: usize,
+    pub masked_materials: usize,
+    pub two_sided_materials: usize,
+    /// Bytes held by texture images (0 without textures: nothing is built).
+    pub texture_bytes: usize,
 }
 
 /// The image environment's size and its 2D distribution's cell count.
@@ -67,6 +73,8 @@ pub struct MemoryEstimate {
     pub meshes: usize,
     pub accel: usize,
     pub lights: usize,
+    /// Texture images (each shared image once).
+    pub textures: usize,
     pub total: usize,
 }
 
@@ -77,6 +85,7 @@ pub fn material_kind(m: &Material) -> &'static str {
         Material::Mirror { .. } => "mirror",
         Material::Dielectric { .. } => "dielectric",
         Material::RoughConductor { .. } => "conductor",
+        Material::RoughDielectric { .. } => "dielectric",
         Material::RoughPlastic { .. } => "plastic",
     }
 }
@@ -110,13 +119,28 @@ impl Scene {
             diffuse_materials: used
                 .iter()
                 .any(|m| matches!(m, Material::Diffuse { .. } | Material::RoughPlastic { .. })),
-            glossy_materials: used
-                .iter()
-                .any(|m| matches!(m, Material::RoughConductor { .. } | Material::RoughPlastic { .. })),
+            glossy_materials: used.iter().any(|m| {
+                matches!(
+                    m,
+                    Material::RoughConductor { .. } | Material::RoughPlastic { .. } | Material::RoughDielectric { .. }
+                )
+            }),
             specular_materials: used.iter().any(|m| m.is_specular()),
             materials_by_kind: count_kinds(&used),
             triangles: self.triangle_count(),
+            textured_materials: self.used_surfaces().filter(|m| m.is_textured()).count(),
+            masked_materials: self.used_surfaces().filter(|m| m.is_masked()).count(),
+            two_sided_materials: self.used_surfaces().filter(|m| m.two_sided).count(),
+            texture_bytes: self.texture_memory_bytes(),
         }
+    }
+
+    fn used_surfaces(&self) -> impl Iterator<Item = &crate::material::SurfaceMaterial> {
+        self.materials
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| self.shapes.iter().any(|s| s.material as usize == *i))
+            .map(|(_, m)| m)
     }
 
     fn used_materials(&self) -> Vec<&Material> {
@@ -124,7 +148,7 @@ impl Scene {
         for s in &self.shapes {
             used[s.material as usize] = true;
         }
-        self.materials.iter().zip(used).filter(|(_, u)| *u).map(|(m, _)| m).collect()
+        self.materials.iter().zip(used).filter(|(_, u)| *u).map(|(m, _)| &m.template).collect()
     }
 }
 
@@ -158,6 +182,7 @@ pub fn scene_info(scene: &Scene) -> SceneInfo {
         })
         .sum::<usize>()
         + distribution_bytes(&scene.light_sampler.distribution);
+    let textures = scene.texture_memory_bytes();
     let environment = scene.environment_light().map(|(_, l)| match l {
         Light::ImageEnvironment(e) => format!("image {}x{}", e.width, e.height),
         _ => "constant".to_string(),
@@ -170,13 +195,13 @@ pub fn scene_info(scene: &Scene) -> SceneInfo {
         area_lights: scene.lights.iter().filter(|l| matches!(l, Light::Area(_))).count(),
         environment,
         materials: scene.materials.len(),
-        materials_by_kind: count_kinds(&scene.materials.iter().collect::<Vec<_>>()),
+        materials_by_kind: count_kinds(&scene.materials.iter().map(|m| &m.template).collect::<Vec<_>>()),
         portals: scene.portals.len(),
         bounds_min: scene.bounds.min.to_array(),
         bounds_max: scene.bounds.max.to_array(),
         resolution: [scene.camera.width, scene.camera.height],
         accel: scene.accel.kind().to_string(),
-        memory: MemoryEstimate { meshes, accel, lights, total: meshes + accel + lights },
+        memory: MemoryEstimate { meshes, accel, lights, textures, total: meshes + accel + lights + textures },
     }
 }
 
@@ -201,12 +226,13 @@ impl fmt::Display for SceneInfo {
         writeln!(f, "resolution:  {}x{}", self.resolution[0], self.resolution[1])?;
         write!(
             f,
-            "memory:      {:.2} MiB (meshes {:.2}, {} accelerator {:.2}, lights {:.2})",
+            "memory:      {:.2} MiB (meshes {:.2}, {} accelerator {:.2}, lights {:.2}, textures {:.2})",
             mib(self.memory.total),
             mib(self.memory.meshes),
             self.accel,
             mib(self.memory.accel),
-            mib(self.memory.lights)
+            mib(self.memory.lights),
+            mib(self.memory.textures)
         )
     }
 }

@@ -8,9 +8,7 @@ use std::sync::Arc;
 
 use glam::{Mat3, Mat4, Vec3};
 
-use super::desc::{
-    CameraDesc, ColorDesc, EnvironmentDesc, MaterialDesc, PortalDesc, RenderSettingsDesc, SceneDesc, ShapeDesc,
-};
+use super::desc::{CameraDesc, ColorDesc, EnvironmentDesc, PortalDesc, RenderSettingsDesc, SceneDesc, ShapeDesc};
 use super::error::{fmt3, SceneError};
 use super::mesh_io::{self, RawMesh};
 use super::{shapes, transform, Portal, Scene, ShapeInfo};
@@ -18,8 +16,9 @@ use crate::accel::{self, AccelKind};
 use crate::camera::Camera;
 use crate::geometry::{Aabb, TriangleMesh};
 use crate::light::{AreaLight, ConstantEnvironment, EmitterKind, ImageEnvironment, Light, LightSampler};
-use crate::material::Material;
 use crate::spectrum::Rgb;
+
+mod materials;
 
 /// A built scene together with the render settings its file asked for.
 pub struct LoadedScene {
@@ -146,6 +145,13 @@ impl Builder<'_> {
         for (geom_id, s) in built.into_iter().enumerate() {
             let mut info = s.info;
             if let Some((radiance, two_sided)) = s.emission {
+                if materials[info.material as usize].is_masked() {
+                    return Err(self.err(
+                        format!("shapes[{geom_id}]"),
+                        "an emitting shape cannot have a material with 'opacity' below 1 (a masked emitter \
+                         would need the mask in the emission pdfs)",
+                    ));
+                }
                 info.light = Some(lights.len() as u32);
                 lights.push(Light::Area(AreaLight::new(s.mesh.clone(), geom_id as u32, radiance, two_sided)));
             }
@@ -180,11 +186,13 @@ impl Builder<'_> {
             accel: render.accel.to_string(),
             message: e.to_string(),
         })?;
+        let masked = infos.iter().any(|info| materials[info.material as usize].is_masked());
         let scene = Scene {
             camera,
             meshes,
             shapes: infos,
             materials,
+            masked,
             lights,
             light_sampler,
             environment,
@@ -244,74 +252,6 @@ impl Builder<'_> {
             ));
         }
         Ok(Camera::new(position, look_at, up, c.fov, w as u32, h as u32))
-    }
-
-    fn materials(
-        &self,
-        descs: &BTreeMap<String, MaterialDesc>,
-    ) -> Result<(Vec<Material>, BTreeMap<String, u32>), SceneError> {
-        let mut materials = Vec::with_capacity(descs.len());
-        let mut index = BTreeMap::new();
-        for (name, d) in descs {
-            index.insert(name.clone(), materials.len() as u32);
-            materials.push(self.material(name, d)?);
-        }
-        Ok((materials, index))
-    }
-
-    fn material(&self, name: &str, d: &MaterialDesc) -> Result<Material, SceneError> {
-        let key = |k: &str| format!("materials.{name}.{k}");
-        let allowed: &[&str] = match d.kind.as_str() {
-            "diffuse" | "mirror" => &["reflectance"],
-            "dielectric" => &["ior"],
-            "conductor" => &["roughness", "eta", "k", "colour"],
-            "plastic" => &["diffuse", "roughness", "ior"],
-            other => {
-                return Err(self.err(
-                    key("type"),
-                    format!("expected one of: diffuse, mirror, dielectric, conductor, plastic, got '{other}'"),
-                ))
-            }
-        };
-        for k in d.present_keys() {
-            if !allowed.contains(&k) {
-                return Err(self.err(
-                    format!("materials.{name}"),
-                    format!("key '{k}' does not apply to type '{}' (expected: type, {})", d.kind, allowed.join(", ")),
-                ));
-            }
-        }
-        Ok(match d.kind.as_str() {
-            "diffuse" => Material::Diffuse { reflectance: self.reflectance(&key("reflectance"), d.reflectance, 0.5)? },
-            "mirror" => Material::Mirror { reflectance: self.reflectance(&key("reflectance"), d.reflectance, 1.0)? },
-            "dielectric" => Material::Dielectric { ior: self.ior(&key("ior"), d.ior)? },
-            "conductor" => {
-                let alpha = self.roughness(&key("roughness"), d.roughness)?;
-                match (d.colour, d.eta, d.k) {
-                    (Some(c), None, None) => {
-                        let colour = self.reflectance(&key("colour"), Some(c), 0.0)?;
-                        Material::conductor_from_colour(alpha, colour)
-                    }
-                    (None, Some(eta), Some(k)) => {
-                        let eta = self.color(&key("eta"), eta, "every component > 0", |v| v > 0.0)?;
-                        let k = self.color(&key("k"), k, "every component ≥ 0", |v| v >= 0.0)?;
-                        Material::RoughConductor { alpha, eta, k }
-                    }
-                    _ => {
-                        return Err(self.err(
-                            format!("materials.{name}"),
-                            "a conductor needs either 'colour' or both 'eta' and 'k' (and not both forms)",
-                        ))
-                    }
-                }
-            }
-            "plastic" => Material::RoughPlastic {
-                diffuse: self.reflectance(&key("diffuse"), d.diffuse, 0.5)?,
-                alpha: self.roughness(&key("roughness"), d.roughness)?,
-                ior: self.ior(&key("ior"), d.ior)?,
-            },
-            _ => unreachable!("material type checked above"),
-        })
     }
 
     fn shape(&self, i: usize, s: &ShapeDesc, materials: &BTreeMap<String, u32>) -> Result<BuiltShape, SceneError> {
@@ -432,8 +372,13 @@ impl Builder<'_> {
         let allowed: &[&str] = match env.kind.as_str() {
             "constant" => &["radiance", "scale"],
             "image" => &["file", "scale", "rotate"],
+            "sunsky" | "sky" => &["sun_direction", "turbidity", "albedo", "sun_scale", "sky_scale"],
+            "sun" => &["sun_direction", "turbidity", "sun_scale"],
             other => {
-                return Err(self.err("environment.type", format!("expected one of: constant, image, got '{other}'")))
+                return Err(self.err(
+                    "environment.type",
+                    format!("expected one of: constant, image, sunsky, sun, sky, got '{other}'"),
+                ))
             }
         };
         let present = [
@@ -441,6 +386,11 @@ impl Builder<'_> {
             ("file", env.file.is_some()),
             ("scale", env.scale.is_some()),
             ("rotate", env.rotate.is_some()),
+            ("sun_direction", env.sun_direction.is_some()),
+            ("turbidity", env.turbidity.is_some()),
+            ("albedo", env.albedo.is_some()),
+            ("sun_scale", env.sun_scale.is_some()),
+            ("sky_scale", env.sky_scale.is_some()),
         ];
         for (k, p) in present {
             if p && !allowed.contains(&k) {
@@ -449,6 +399,9 @@ impl Builder<'_> {
                     format!("key '{k}' does not apply to type '{}' (expected: type, {})", env.kind, allowed.join(", ")),
                 ));
             }
+        }
+        if matches!(env.kind.as_str(), "sunsky" | "sun" | "sky") {
+            return self.sunsky(env, bounds);
         }
         let scale = env.scale.unwrap_or(1.0);
         if !(scale >= 0.0 && scale.is_finite()) {

@@ -7,6 +7,7 @@ mod error;
 pub mod import;
 mod info;
 mod load;
+mod mask;
 pub mod mesh_io;
 pub mod procedural;
 pub mod shapes;
@@ -23,13 +24,13 @@ pub use load::{
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use crate::accel::Accel;
 use crate::camera::Camera;
 use crate::geometry::{Aabb, Ray, SurfaceInteraction, TriangleMesh};
 use crate::light::{Light, LightSampler};
-use crate::material::Material;
+use crate::material::{Bsdf, SurfaceMaterial};
 
 /// What each mesh (`geom_id`) is made of.
 #[derive(Clone, Debug)]
@@ -58,7 +59,9 @@ pub struct Scene {
     pub meshes: Vec<Arc<TriangleMesh>>,
     /// Per-mesh material and emission, indexed by `geom_id`.
     pub shapes: Vec<ShapeInfo>,
-    pub materials: Vec<Material>,
+    pub materials: Vec<SurfaceMaterial>,
+    /// Whether any shape's material has an opacity below 1 (only then do rays test masks).
+    pub masked: bool,
     pub lights: Vec<Light>,
     /// Light selection (by power).
     pub light_sampler: LightSampler,
@@ -72,21 +75,50 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// The closest surface hit by `ray`.
+    /// The closest surface hit by `ray` (passing through masked surfaces where they let it,
+    /// see `mask`).
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
         let hit = self.accel.intersect(ray)?;
-        Some(SurfaceInteraction::from_hit(&self.meshes[hit.geom_id as usize], &hit))
+        let si = SurfaceInteraction::from_hit(&self.meshes[hit.geom_id as usize], &hit);
+        if !self.masked {
+            return Some(si);
+        }
+        mask::closest_opaque(self, ray, si)
     }
-    /// Whether anything blocks `ray` within its extent.
+    /// Whether anything blocks `ray` within its extent (masked surfaces block it where they
+    /// would stop it in `intersect`).
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
-        self.accel.occluded(ray)
+        if !self.masked {
+            return self.accel.occluded(ray);
+        }
+        mask::occluded(self, ray)
     }
-    /// The material of the surface at `si`.
+    /// The BSDF of the surface at `si` (textures looked up at its uv).
     #[inline]
-    pub fn material(&self, si: &SurfaceInteraction) -> &Material {
-        &self.materials[self.shapes[si.geom_id as usize].material as usize]
+    pub fn material(&self, si: &SurfaceInteraction) -> Bsdf {
+        self.bsdf(self.shapes[si.geom_id as usize].material, si.uv)
+    }
+    /// The BSDF of material `material` at surface coordinates `uv`.
+    #[inline]
+    pub fn bsdf(&self, material: u32, uv: Vec2) -> Bsdf {
+        self.materials[material as usize].bsdf_at(uv)
+    }
+    /// Bytes held by texture images (each shared image counted once).
+    pub fn texture_memory_bytes(&self) -> usize {
+        let mut seen: Vec<*const crate::texture::TexelImage> = Vec::new();
+        let mut bytes = 0;
+        for t in self.materials.iter().flat_map(|m| m.textures()) {
+            if let Some(img) = t.image() {
+                let p = Arc::as_ptr(img);
+                if !seen.contains(&p) {
+                    seen.push(p);
+                    bytes += img.memory_bytes();
+                }
+            }
+        }
+        bytes
     }
     /// The area light on the surface at `si`, if it emits.
     #[inline]

@@ -197,7 +197,7 @@ fn random_walk<S: UniformSource>(
         let u: [f32; BOUNCE_DIMS] = sampler.next_n();
         let index = path.len() - 1;
         let v = path[index];
-        let material = &scene.materials[v.material as usize];
+        let material = v.bsdf(scene);
         let wo_l = v.frame.to_local(v.wo);
         let Some(bs) = material.sample(wo_l, [u[0], u[1], u[2]], mode) else { return };
         if !(bs.pdf > 0.0) || crate::spectrum::is_black(bs.f) {

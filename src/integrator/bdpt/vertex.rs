@@ -3,10 +3,10 @@
 //! side in AREA measure (solid angle for vertices at infinity), as Veach's thesis Sec. 10.2 and
 //! pbrt-v4 Sec. 13.4 keep them for the MIS ratio recurrence.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use crate::geometry::{Frame, SurfaceInteraction};
-use crate::material::{Material, TransportMode};
+use crate::material::{Bsdf, TransportMode};
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
@@ -42,6 +42,8 @@ pub struct Vertex {
     pub dir: Vec3,
     /// Index into `Scene::materials` (surface vertices).
     pub material: u32,
+    /// Surface coordinates, where the material's textures are looked up (surface vertices).
+    pub uv: Vec2,
     /// Index into `Scene::lights` of the emitter at this vertex (light vertices, emissive surfaces,
     /// escaped camera rays when the scene has an environment).
     pub light: Option<u32>,
@@ -72,6 +74,7 @@ impl Vertex {
             wo: Vec3::ZERO,
             dir: Vec3::ZERO,
             material: 0,
+            uv: Vec2::ZERO,
             light: None,
             infinite: false,
             delta: false,
@@ -137,6 +140,7 @@ impl Vertex {
             frame: si.shading,
             wo,
             material: shape.material,
+            uv: si.uv,
             light: shape.light,
             beta,
             ..Vertex::blank(VertexKind::Surface, mode)
@@ -177,8 +181,9 @@ impl Vertex {
         }
     }
 
-    fn material<'a>(&self, scene: &'a Scene) -> &'a Material {
-        &scene.materials[self.material as usize]
+    /// The BSDF at this surface vertex (its material's textures looked up at its uv).
+    pub fn bsdf(&self, scene: &Scene) -> Bsdf {
+        scene.bsdf(self.material, self.uv)
     }
 
     /// BSDF value for light scattered at this surface vertex between `wo` and the direction to
@@ -196,7 +201,7 @@ impl Vertex {
         }
         let wo_l = self.frame.to_local(self.wo);
         let wi_l = self.frame.to_local(wi);
-        let f = self.material(scene).eval(wo_l, wi_l, self.mode);
+        let f = self.bsdf(scene).eval(wo_l, wi_l, self.mode);
         f * shading_correction(self.mode, self.wo, wi, self.frame.n, self.ng)
     }
 
@@ -239,7 +244,7 @@ impl Vertex {
         let Some(prev) = prev else { return 0.0 };
         let wp = self.frame.to_local(self.dir_to(prev));
         let wn = self.frame.to_local(self.dir_to(next));
-        let pdf = self.material(scene).pdf(wp, wn, self.mode);
+        let pdf = self.bsdf(scene).pdf(wp, wn, self.mode);
         self.convert_density(pdf, next)
     }
 

@@ -243,7 +243,7 @@ fn invert_bounce(
     if v.infinite {
         return Err(InversionFailure::Shape);
     }
-    let material = &scene.materials[v.material as usize];
+    let material = v.bsdf(scene);
     let wo = v.frame.to_local(v.dir_to(previous));
     let wi = v.frame.to_local(v.dir_to(next));
     let gamma: [f32; BSDF_INVERT_DIMS] = std::array::from_fn(|_| rng.uniform());
@@ -500,10 +500,10 @@ mod tests {
     /// area densities are 0 there (a delta lobe has no density), so this is the reference for the
     /// vertex a delta lobe fixes.
     fn delta_lobe_mass(scene: &Scene, v: &Vertex, previous: &Vertex, next: &Vertex) -> f64 {
-        let material = &scene.materials[v.material as usize];
+        let material = v.bsdf(scene);
         let wo = v.frame.to_local(v.dir_to(previous));
         let wi = v.frame.to_local(v.dir_to(next));
-        let lobe = match material {
+        let lobe = match material.material {
             Material::Dielectric { .. } if wo.z * wi.z < 0.0 => DIELECTRIC_REFRACT,
             Material::Dielectric { .. } => DIELECTRIC_REFLECT,
             _ => 0,

@@ -1,0 +1,109 @@
+//! Texture lookups: bilinear interpolation between texel centres with wrap-around, the uv
+//! convention (v = 0 at the bottom row, Mitsuba's), uscale/vscale, the checkerboard's layout, and
+//! images read back through OpenImageIO with their sRGB decoding.
+
+use std::sync::Arc;
+
+use glam::Vec2;
+
+use super::*;
+use crate::film::oiio::{read_image, write_image, WriteOptions};
+use crate::film::tonemap::srgb_oetf;
+use crate::film::Image;
+
+/// A 4×2 image with distinct texels: texel (i, j) = (i, j, 1)/8.
+fn image() -> TexelImage {
+    let (w, h) = (4, 2);
+    let texels = (0..h).flat_map(|j| (0..w).map(move |i| Rgb::new(i as f32 / 8.0, j as f32 / 8.0, 0.125))).collect();
+    TexelImage { width: w, height: h, texels }
+}
+
+fn close(a: Rgb, b: Rgb) -> bool {
+    (a - b).abs().max_element() < 1e-6
+}
+
+/// At texel centres the lookup is the texel; halfway between two centres it is their mean; across
+/// the seam (s = 0) it blends the first and the last column (wrap), never a clamped edge. The
+/// wrong variant (clamp to edge) differs at the seam.
+#[test]
+fn bilinear_hits_centres_and_wraps() {
+    let img = image();
+    for j in 0..2 {
+        for i in 0..4 {
+            let s = (i as f32 + 0.5) / 4.0;
+            let t = (j as f32 + 0.5) / 2.0;
+            assert!(close(img.bilinear(s, t), img.texels[j * 4 + i]), "texel ({i}, {j})");
+            // One period away, the same.
+            assert!(close(img.bilinear(s + 3.0, t - 2.0), img.texels[j * 4 + i]));
+        }
+    }
+    let mid = img.bilinear(0.25, 0.25);
+    assert!(close(mid, (img.texels[0] + img.texels[1]) * 0.5));
+    let seam = img.bilinear(0.0, 0.25);
+    let wrapped = (img.texels[0] + img.texels[3]) * 0.5;
+    assert!(close(seam, wrapped), "{seam:?} vs {wrapped:?}");
+    assert!(!close(seam, img.texels[0]), "a clamped edge would give the first column");
+}
+
+/// (u, v) = (½W⁻¹, ½H⁻¹) is the centre of the bottom-left texel: v = 0 is the bottom (OBJ's
+/// convention, which Mitsuba reaches by flipping v at load and looking up from the top). uscale
+/// and vscale multiply before the wrap.
+#[test]
+fn uv_convention_and_scales() {
+    let img = Arc::new(image());
+    let t = Texture::Bitmap { image: img.clone(), uscale: 1.0, vscale: 1.0 };
+    assert!(close(t.eval(Vec2::new(0.125, 0.25)), img.texels[4]), "bottom-left texel");
+    assert!(close(t.eval(Vec2::new(0.125, 0.75)), img.texels[0]), "top-left texel");
+    let scaled = Texture::Bitmap { image: img.clone(), uscale: 2.0, vscale: 3.0 };
+    // u = 0.0625·2 = 0.125 (first column centre); 1 − v = 0.25/3·3 = 0.25 (top row centre).
+    assert!(close(scaled.eval(Vec2::new(0.0625, 1.0 - 0.25 / 3.0)), img.texels[0]));
+}
+
+/// colour0 on the squares where s and t are in the same half of their period.
+#[test]
+fn checkerboard_layout() {
+    let c = Texture::Checkerboard { colour0: Rgb::ONE, colour1: Rgb::ZERO, uscale: 2.0, vscale: 2.0 };
+    // (u, v) → (s, t) = (2u, 2(1 − v)).
+    assert_eq!(c.eval(Vec2::new(0.1, 0.9)), Rgb::ONE); // s 0.2, t 0.2
+    assert_eq!(c.eval(Vec2::new(0.3, 0.9)), Rgb::ZERO); // s 0.6, t 0.2
+    assert_eq!(c.eval(Vec2::new(0.3, 0.7)), Rgb::ONE); // s 0.6, t 0.6
+    assert_eq!(c.eval(Vec2::new(0.6, 0.9)), Rgb::ONE); // s 1.2, t 0.2
+    assert_eq!(c.mean(), Rgb::splat(0.5));
+}
+
+/// An 8-bit PNG written with the sRGB encoding reads back, decoded, as the linear values within
+/// half an 8-bit step of the encoding (slope of the decoding × 0.5/255); a float EXR reads back
+/// exactly and is not decoded. Reading the PNG without decoding (the wrong variant) is off by far
+/// more (0.5 encodes to 0.735).
+#[test]
+fn images_read_through_oiio_with_their_encoding() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut img = Image::new(3, 2);
+    let values = [0.02f32, 0.2, 0.5, 0.8, 0.95, 1.0];
+    for (p, &v) in img.pixels.iter_mut().zip(&values) {
+        *p = Rgb::new(v, v * 0.5, 1.0 - v);
+    }
+    let png = dir.path().join("t.png");
+    write_image(&png, &img, &WriteOptions::default()).expect("png");
+    let read = read_image(&png).expect("read png");
+    assert!(!read.is_float);
+    let decoded = TexelImage::from_read(&read, read.srgb.unwrap_or(true));
+    let raw = TexelImage::from_read(&read, false);
+    for (k, p) in img.pixels.iter().enumerate() {
+        for c in 0..3 {
+            let v = p[c];
+            let slope =
+                if v > 0.0031308 { 2.4 * (srgb_oetf(v) + 0.055).powf(1.4) / 1.055f32.powf(2.4) } else { 1.0 / 12.92 };
+            let tol = slope * 0.5 / 255.0 + 1e-6;
+            assert!((decoded.texels[k][c] - v).abs() <= tol, "texel {k} channel {c}: {} vs {v}", decoded.texels[k][c]);
+        }
+    }
+    assert!((raw.texels[2].x - 0.5).abs() > 0.2);
+    let exr = dir.path().join("t.exr");
+    write_image(&exr, &img, &WriteOptions::default()).expect("exr");
+    let read = read_image(&exr).expect("read exr");
+    assert!(read.is_float && read.srgb != Some(true));
+    let linear = TexelImage::from_read(&read, false);
+    assert_eq!(linear.texels, img.pixels);
+    assert!(read_image(&dir.path().join("missing.png")).is_err());
+}
