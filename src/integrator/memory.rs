@@ -176,7 +176,8 @@ mod tests {
         let pmlt = render_memory("pmlt", &params, 10, 10).expect("small");
         assert_eq!(pmlt.film, 100 * 24 + 100 * 12);
         assert_eq!(pmlt.chains, 1000 * 12 + 10 * 2 * 9 * PATH_VERTEX_BYTES);
-        let huge: toml::Table = toml::from_str("chains = 16777216\nmax_depth = 1024\nbootstrap = 4294967296").expect("toml");
+        let huge: toml::Table =
+            toml::from_str("chains = 16777216\nmax_depth = 1024\nbootstrap = 4294967296").expect("toml");
         assert!(render_memory("pmlt", &huge, 10, 10).expect("counted").total() > 1 << 40);
     }
 }

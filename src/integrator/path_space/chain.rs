@@ -20,7 +20,6 @@
 //! as the driver's render model asks, and every stream derives from (seed, chain index), so the
 //! image depends on the seed and the chain count only (not on the threads).
 
-
 use super::bidirectional::{Bidirectional, LengthKernel};
 use super::settings::PmltSettings;
 use super::state::PathState;
@@ -53,6 +52,8 @@ const START_ATTEMPTS: usize = 64;
 #[derive(Clone, Debug)]
 pub struct Pmlt {
     pub settings: PmltSettings,
+    /// The bidirectional mutation (a value, so that tests can render with a deliberately wrong one).
+    pub bidirectional: Bidirectional,
 }
 
 /// A chain: its own stream and its current path.
@@ -173,14 +174,14 @@ fn splat(path: &PathState, w: f64, film: &mut SplatBuffer) {
 
 impl Pmlt {
     pub fn from_params(params: &toml::Table) -> Result<Pmlt, RenderError> {
-        Ok(Pmlt { settings: PmltSettings::from_params(params)? })
+        Ok(Pmlt { settings: PmltSettings::from_params(params)?, bidirectional: Bidirectional::default() })
     }
 
     /// The strategies of the chain (the bidirectional mutation alone, for now).
     pub fn strategies(&self) -> StrategySet {
         StrategySet {
             entries: vec![Box::new(Entry {
-                strategy: Bidirectional::default(),
+                strategy: self.bidirectional,
                 kernel: LengthKernel,
                 weight: self.settings.bidirectional,
             })],
@@ -294,7 +295,14 @@ impl Pmlt {
                 for _ in 0..START_ATTEMPTS {
                     let (i, _, _) = start.sample_discrete(rng.uniform());
                     candidates.clear();
-                    self.bootstrap_sample(&bctx, job.seed, i as u64, &mut init_slot, &mut init_counters, Some(&mut candidates));
+                    self.bootstrap_sample(
+                        &bctx,
+                        job.seed,
+                        i as u64,
+                        &mut init_slot,
+                        &mut init_counters,
+                        Some(&mut candidates),
+                    );
                     let weights: Vec<f32> = candidates.iter().map(|c| c.1).collect();
                     if weights.is_empty() {
                         continue;
@@ -392,7 +400,8 @@ impl Pmlt {
         if let Some(map) = extra.as_object_mut() {
             map.insert("b".into(), serde_json::json!(b));
         }
-        let output = RenderOutput { image, layers: Vec::new(), counters, wall_time: render_start.elapsed(), extra_stats: extra };
+        let output =
+            RenderOutput { image, layers: Vec::new(), counters, wall_time: render_start.elapsed(), extra_stats: extra };
         Ok(PmltRun { output, film: out.film })
     }
 }

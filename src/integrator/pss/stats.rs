@@ -203,7 +203,11 @@ pub struct StrategyStats {
 
 impl StrategyStats {
     pub fn new(name: &str, depths: usize) -> StrategyStats {
-        StrategyStats { name: name.to_string(), per_depth: vec![AcceptanceCount::default(); depths], ..Default::default() }
+        StrategyStats {
+            name: name.to_string(),
+            per_depth: vec![AcceptanceCount::default(); depths],
+            ..Default::default()
+        }
     }
 
     fn merge(&mut self, o: &StrategyStats) {
@@ -374,7 +378,9 @@ fn per_depth_counts<S: Serializer>(counts: &[AcceptanceCount], s: S) -> Result<S
         acceptance: Option<f64>,
     }
     s.collect_seq(
-        counts.iter().map(|a| ProposalsAndRate { proposals: a.proposed, acceptance: (a.proposed > 0).then(|| a.rate()) }),
+        counts
+            .iter()
+            .map(|a| ProposalsAndRate { proposals: a.proposed, acceptance: (a.proposed > 0).then(|| a.rate()) }),
     )
 }
 
