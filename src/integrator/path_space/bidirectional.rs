@@ -137,13 +137,13 @@ impl LengthKernel {
 /// Veach's bidirectional mutation (module docs).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Bidirectional {
-    /// Test only: leave split `s′ = omit_split` out of the sum of `transition` (a deliberately wrong
-    /// T, which the χ² test must reject).
-    #[cfg(test)]
+    /// Tests only: leave split `s′ = omit_split` out of the sum of `transition` (a deliberately
+    /// wrong T, which the χ² test must reject).
+    #[cfg(any(test, feature = "testing"))]
     pub omit_split: Option<usize>,
-    /// Test only: leave the addition-length probability out of T (a deliberately wrong T, which the
-    /// path-length test must reject).
-    #[cfg(test)]
+    /// Tests only: leave the addition-length probability out of T (a deliberately wrong T, which the
+    /// path-length and agreement tests must reject).
+    #[cfg(any(test, feature = "testing"))]
     pub omit_addition_pmf: bool,
 }
 
@@ -329,13 +329,13 @@ impl Strategy for Bidirectional {
         let position = 1.0 / (n - cut.kd + 1) as f64;
         #[allow(unused_mut)]
         let mut addition = kernel.addition_pmf(cut.ka, cut.kd, n, max_vertices);
-        #[cfg(test)]
+        #[cfg(any(test, feature = "testing"))]
         if self.omit_addition_pmf {
             addition = 1.0;
         }
-        #[cfg(test)]
+        #[cfg(any(test, feature = "testing"))]
         let omit = self.omit_split;
-        #[cfg(not(test))]
+        #[cfg(not(any(test, feature = "testing")))]
         let omit = None;
         let t = kernel.deletion_pmf(cut.kd, n) * position * addition * Self::split_sum(ctx, &to.vertices, cut, omit);
         if t.is_finite() {

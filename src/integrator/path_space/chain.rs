@@ -52,6 +52,8 @@ const START_ATTEMPTS: usize = 64;
 #[derive(Clone, Debug)]
 pub struct Pmlt {
     pub settings: PmltSettings,
+    /// The bidirectional mutation (a value, so that tests can render with a deliberately wrong one).
+    pub bidirectional: Bidirectional,
 }
 
 /// A chain: its own stream and its current path.
@@ -172,14 +174,14 @@ fn splat(path: &PathState, w: f64, film: &mut SplatBuffer) {
 
 impl Pmlt {
     pub fn from_params(params: &toml::Table) -> Result<Pmlt, RenderError> {
-        Ok(Pmlt { settings: PmltSettings::from_params(params)? })
+        Ok(Pmlt { settings: PmltSettings::from_params(params)?, bidirectional: Bidirectional::default() })
     }
 
     /// The strategies of the chain (the bidirectional mutation alone, for now).
     pub fn strategies(&self) -> StrategySet {
         StrategySet {
             entries: vec![Box::new(Entry {
-                strategy: Bidirectional::default(),
+                strategy: self.bidirectional,
                 kernel: LengthKernel,
                 weight: self.settings.bidirectional,
             })],
