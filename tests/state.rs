@@ -23,7 +23,7 @@ fn scene(name: &str, width: u32, height: u32) -> Scene {
 /// The integrators of the tests, on scenes where each has light to find, with a sample budget of
 /// three or more passes: pt, BDPT and light tracing at 64×48 take 22 samples per pixel a pass
 /// (2^16 pixel samples), so 70 are four passes, the last of 4 (a shard's share must count it
-/// right); MLT takes about one mutation per pixel a pass.
+/// right); MLT (pmlt too) takes about one mutation per pixel a pass.
 fn cases() -> Vec<(&'static str, &'static str, &'static str, u64)> {
     let mlt = "max_depth = 4\nbootstrap = 2000\nchains = 24";
     vec![
@@ -33,6 +33,7 @@ fn cases() -> Vec<(&'static str, &'static str, &'static str, u64)> {
         ("pssmlt", "cornell-box", mlt, 4),
         ("mmlt", "cornell-box", mlt, 4),
         ("rjmlt", "cornell-glossy", mlt, 6),
+        ("pmlt", "cornell-box", mlt, 4),
     ]
 }
 
@@ -73,7 +74,7 @@ fn bits(image: &Image) -> Vec<[u32; 3]> {
 /// film sums agree bit for bit too. For every integrator; 64×48, 2 threads; about 6 s in all.
 ///
 /// Exact equality, so any state lost or repeated on the way shows; the negative control at the
-/// end (pt and MMLT) resumes the pass-1 state as if no pass were done — the tiles redo pass 0's
+/// end (pt, MMLT and pmlt) resumes the pass-1 state as if no pass were done — the tiles redo pass 0's
 /// streams, the chains run one segment more — and must not give the image.
 #[test]
 fn interrupted_and_resumed_renders_equal_the_uninterrupted_one_bit_for_bit() {
@@ -111,7 +112,7 @@ fn interrupted_and_resumed_renders_equal_the_uninterrupted_one_bit_for_bit() {
         let again = integrator.output_of_state(&through_file(file.header, resumed.state).state).expect("output");
         assert_eq!(bits(&again.image), bits(&full.output.image), "{name}: output_of_state");
 
-        if name == "pt" || name == "mmlt" {
+        if name == "pt" || name == "mmlt" || name == "pmlt" {
             let mut wrong = integrator.render_session(&scene, &job, &NoProgress, &stop(1)).expect("run").state;
             wrong.passes_done = 0;
             let session = Session { resume: Some(&wrong), ..Session::default() };

@@ -25,15 +25,15 @@ use super::settings::PmltSettings;
 use super::state::PathState;
 use super::strategy::{Entry, StrategySet};
 use super::PathContext;
-use crate::film::{Image, SplatBuffer};
+use serde::{Deserialize, Serialize};
+
+use crate::film::SplatBuffer;
 use crate::integrator::bdpt::path::full_path;
 use crate::integrator::bdpt::{
     connect_all, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch, FilmRegion, Vertex,
 };
-use crate::integrator::driver::{Driver, PassBoundary, Passes, Slot};
-use crate::integrator::pss::bootstrap::run_bootstrap;
 use crate::integrator::pss::stats::{MltStats, StrategyStats};
-use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
+use crate::integrator::{RenderError, RenderOutput};
 use crate::sampling::{Distribution1D, Rng};
 use crate::scene::Scene;
 use crate::spectrum::{is_finite, luminance};
@@ -46,7 +46,7 @@ const CHAIN_SEED_SALT: u64 = 0x9A7C_C4A1_u64;
 /// Draws from the bootstrap a chain may make to find a start path whose f is non-zero (the
 /// bootstrap's BDPT contribution and f(x̄) differ only by rounding, e.g. a shadow ray between two
 /// vertices a few ulps apart).
-const START_ATTEMPTS: usize = 64;
+pub(super) const START_ATTEMPTS: usize = 64;
 
 /// Path-space MLT.
 #[derive(Clone, Debug)]
@@ -56,18 +56,22 @@ pub struct Pmlt {
     pub bidirectional: Bidirectional,
 }
 
-/// A chain: its own stream and its current path.
+/// A chain: its own stream and its current path (with its f and f*), all of which a state saves
+/// (`crate::state::UnitState`, through serde; `session`).
+#[derive(Serialize, Deserialize)]
 pub struct ChainUnit {
+    /// The chain's index in the whole render (a shard holds some of the chains).
+    pub index: u64,
     pub rng: Rng,
     pub current: PathState,
 }
 
 /// Per-slot scratch (BDPT subpaths for the bootstrap) and statistics.
-struct SlotState {
+pub(super) struct SlotState {
     camera: Vec<Vertex>,
     light: Vec<Vertex>,
     scratch: ConnectScratch,
-    stats: MltStats,
+    pub(super) stats: MltStats,
 }
 
 /// A render with its unnormalised film (for tests that check the film's bits).
@@ -188,13 +192,13 @@ impl Pmlt {
         }
     }
 
-    fn bdpt_context<'a>(&self, scene: &'a Scene) -> BdptContext<'a> {
+    pub(super) fn bdpt_context<'a>(&self, scene: &'a Scene) -> BdptContext<'a> {
         BdptContext::new(scene, usize::MAX, self.settings.mis)
     }
 
     /// Bootstrap sample `i`: a BDPT sample over the whole film from stream i; returns Σ_t
     /// luminance(w_t C_t). With `paths`, also every technique's complete path with that weight.
-    fn bootstrap_sample(
+    pub(super) fn bootstrap_sample(
         &self,
         bctx: &BdptContext,
         seed: u64,
@@ -226,7 +230,7 @@ impl Pmlt {
         }
     }
 
-    fn new_slot(&self, set: &StrategySet) -> SlotState {
+    pub(super) fn new_slot(&self, set: &StrategySet) -> SlotState {
         SlotState {
             camera: Vec::new(),
             light: Vec::new(),
@@ -235,187 +239,37 @@ impl Pmlt {
         }
     }
 
-    /// The render with its unnormalised film.
-    pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<PmltRun, RenderError> {
-        let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
-        let pixels = (width * height) as u64;
-        crate::integrator::check_budget(job.budget, scene.camera.width, scene.camera.height, "budget")?;
-        let driver = Driver::new(job, scene.camera.width, scene.camera.height)?;
-        let render_start = std::time::Instant::now();
-        let max_depth = self.settings.max_depth as usize;
-        let ctx = PathContext { scene, max_depth };
-        let bctx = self.bdpt_context(scene);
-        let set = self.strategies();
-        let time_budget = match job.budget {
-            Budget::Seconds(s) => Some(s),
-            Budget::SamplesPerPixel(_) => None,
-        };
-
-        let boot = run_bootstrap(
-            &driver,
-            progress,
-            1,
-            self.settings.bootstrap,
-            time_budget,
-            |_| self.new_slot(&set),
-            |_, i, slot, counters| self.bootstrap_sample(&bctx, job.seed, i, slot, counters, None),
-        );
-        let b = boot.b()[0];
-        let mut warnings = Vec::new();
-        if !(b > 0.0) {
-            warnings.push(format!(
-                "no bootstrap path ({} BDPT samples) carried light to the camera: the image is black. Check that \
-                 emitters are visible from the camera's surroundings, or raise `bootstrap`.",
-                boot.paths
-            ));
-            let mut stats = new_stats(max_depth, &set);
-            stats.bootstrap_paths_per_depth = boot.paths;
-            stats.bootstrap_seconds = boot.elapsed.as_secs_f64();
-            stats.warnings = warnings;
-            stats.finish(pixels, &vec![0.0; max_depth + 1], &vec![0.0; max_depth + 1]);
-            let output = RenderOutput {
-                image: Image::new(width, height),
-                layers: Vec::new(),
-                counters: boot.counters,
-                wall_time: render_start.elapsed(),
-                extra_stats: serde_json::to_value(&stats).unwrap_or(serde_json::Value::Null),
-            };
-            return Ok(PmltRun { output, film: crate::film::Accumulator::new(width, height) });
-        }
-
-        // Start every chain from a resampled bootstrap path (module docs).
-        let start = Distribution1D::new(&boot.targets[0]);
-        let mut init_slot = self.new_slot(&set);
-        let mut init_counters = Counters::default();
-        let mut candidates = Vec::new();
-        let units: Vec<ChainUnit> = (0..self.settings.chains)
-            .map(|c| {
-                let mut rng = Rng::new(job.seed ^ CHAIN_SEED_SALT, c);
-                let mut current = PathState::default();
-                for _ in 0..START_ATTEMPTS {
-                    let (i, _, _) = start.sample_discrete(rng.uniform());
-                    candidates.clear();
-                    self.bootstrap_sample(
-                        &bctx,
-                        job.seed,
-                        i as u64,
-                        &mut init_slot,
-                        &mut init_counters,
-                        Some(&mut candidates),
-                    );
-                    let weights: Vec<f32> = candidates.iter().map(|c| c.1).collect();
-                    if weights.is_empty() {
-                        continue;
-                    }
-                    let (k, _, _) = Distribution1D::new(&weights).sample_discrete(rng.uniform());
-                    current = PathState::new(&ctx, &candidates[k].0, &mut init_counters);
-                    if current.f_star > 0.0 {
-                        break;
-                    }
-                }
-                ChainUnit { rng, current }
-            })
-            .collect();
-        let unstarted = units.iter().filter(|u| !(u.current.f_star > 0.0)).count();
-        if unstarted > 0 {
-            warnings.push(format!(
-                "{unstarted} of {} chains found no start path with a non-zero contribution in {START_ATTEMPTS} draws \
-                 from the bootstrap; they stay at a zero path (their iterations splat nothing).",
-                self.settings.chains
-            ));
-        }
-
-        // Budget: one pass is about one mutation per pixel over all chains.
-        let segment = pixels.div_ceil(self.settings.chains).max(1);
-        let per_pass = segment * self.settings.chains;
-        let passes = match job.budget {
-            Budget::SamplesPerPixel(mpp) => {
-                let total = mpp * pixels;
-                progress.set_total(total.div_ceil(per_pass) * per_pass);
-                Passes::Count(total.div_ceil(per_pass))
+    /// Chain `c`: its stream, and a start path resampled from the bootstrap (module docs), drawn
+    /// again up to `START_ATTEMPTS` times while its f is zero. Depends on the seed and `c` only,
+    /// so a shard starts its chains as the whole render does.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn start_chain(
+        &self,
+        c: u64,
+        start: &Distribution1D,
+        ctx: &PathContext,
+        bctx: &BdptContext,
+        seed: u64,
+        slot: &mut SlotState,
+        counters: &mut Counters,
+        candidates: &mut Vec<(Vec<Vertex>, f32)>,
+    ) -> ChainUnit {
+        let mut rng = Rng::new(seed ^ CHAIN_SEED_SALT, c);
+        let mut current = PathState::default();
+        for _ in 0..START_ATTEMPTS {
+            let (i, _, _) = start.sample_discrete(rng.uniform());
+            candidates.clear();
+            self.bootstrap_sample(bctx, seed, i as u64, slot, counters, Some(&mut *candidates));
+            let weights: Vec<f32> = candidates.iter().map(|c| c.1).collect();
+            if weights.is_empty() {
+                continue;
             }
-            Budget::Seconds(s) => Passes::Seconds((s - render_start.elapsed().as_secs_f64()).max(0.0)),
-        };
-        progress.message("mutating");
-        let scale = |iterations: u64| if iterations > 0 { b * pixels as f64 / iterations as f64 } else { 0.0 };
-        let iterations = |slots: &mut dyn Iterator<Item = &MltStats>| -> u64 {
-            slots.map(|s| s.per_depth.iter().map(|d| d.iterations).sum::<u64>()).sum()
-        };
-        let preview = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
-            at.film.to_image(scale(iterations(&mut at.slots.iter().map(|s| &s.state.stats))))
-        };
-        let out = driver.run(
-            units,
-            passes,
-            progress,
-            |_| self.new_slot(&set),
-            |_, unit, slot| {
-                let Slot { index, state, film, counters } = slot;
-                for _ in 0..segment {
-                    step(&ctx, &set, &mut unit.current, &mut unit.rng, &mut state.stats, film, counters);
-                }
-                if *index == 0 {
-                    let (p, a) = state
-                        .stats
-                        .strategies
-                        .iter()
-                        .flatten()
-                        .fold((0, 0), |(p, a), s| (p + s.selected, a + s.accepted));
-                    progress.message(&format!("acceptance {:.1}%", 100.0 * a as f64 / p.max(1) as f64));
-                }
-                segment
-            },
-            Some(&preview),
-        );
-
-        let mut slots = out.slot_states.into_iter();
-        let Some(mut merged) = slots.next() else {
-            return Err(RenderError::Settings("no worker ran".into()));
-        };
-        for s in slots {
-            merged.stats.merge(&s.stats);
+            let (k, _, _) = Distribution1D::new(&weights).sample_discrete(rng.uniform());
+            current = PathState::new(ctx, &candidates[k].0, counters);
+            if current.f_star > 0.0 {
+                break;
+            }
         }
-        let mut stats = merged.stats;
-        let n = iterations(&mut std::iter::once(&stats));
-        let image = out.film.to_image(scale(n));
-        // b per depth: the bootstrap's b split by the chain's share of iterations at each depth
-        // (the chain samples depths ∝ their b_d), for the JSON's per-depth entries.
-        let b_depth: Vec<f64> =
-            stats.per_depth.iter().map(|d| if n > 0 { b * d.iterations as f64 / n as f64 } else { 0.0 }).collect();
-        stats.passes = out.passes;
-        stats.segment_length = segment;
-        stats.bootstrap_paths_per_depth = boot.paths;
-        stats.bootstrap_seconds = boot.elapsed.as_secs_f64();
-        stats.warnings = warnings;
-        stats.finish(pixels, &b_depth, &b_depth);
-        let mut counters = out.counters;
-        for s in stats.strategies.iter().flatten() {
-            counters
-                .strategies
-                .insert(s.name.clone(), AcceptanceCount { proposed: s.selected, accepted: s.accepted as f64 });
-        }
-        counters.merge(&boot.counters);
-        counters.merge(&init_counters);
-        let mut extra = serde_json::to_value(&stats).unwrap_or(serde_json::Value::Null);
-        if let Some(map) = extra.as_object_mut() {
-            map.insert("b".into(), serde_json::json!(b));
-        }
-        let output =
-            RenderOutput { image, layers: Vec::new(), counters, wall_time: render_start.elapsed(), extra_stats: extra };
-        Ok(PmltRun { output, film: out.film })
-    }
-}
-
-impl Integrator for Pmlt {
-    fn name(&self) -> &'static str {
-        "pmlt"
-    }
-
-    fn settings_json(&self) -> serde_json::Value {
-        serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
-    }
-
-    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
-        self.render_run(scene, job, progress).map(|run| run.output)
+        ChainUnit { index: c, rng, current }
     }
 }

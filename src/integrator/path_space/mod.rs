@@ -32,6 +32,7 @@ pub mod bidirectional;
 pub mod chain;
 pub mod contribution;
 pub mod density;
+pub mod session;
 pub mod settings;
 pub mod state;
 pub mod strategy;

@@ -3,7 +3,7 @@
 //! [`PathState::new`] evaluates from the vertices alone (`contribution::evaluate`).
 
 use glam::{DVec3, Vec2};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::contribution::evaluate;
 use super::PathContext;
@@ -15,7 +15,7 @@ use crate::stats::Counters;
 
 /// How light interacts at a vertex: what the mutations (and part 16's tree over path signatures)
 /// read. Glossy means a non-delta BSDF that is not Lambertian (GGX conductor, rough plastic).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Interaction {
     Camera,
@@ -30,7 +30,7 @@ pub enum Interaction {
 /// material, emitter, and for a vertex at infinity its direction), with its role fixed by its place
 /// in the path: `kind` is `Camera` for the first vertex, `Light` for the last and `Surface`
 /// otherwise, so that BDPT's density functions (`Vertex::pdf_light`, `pdf_light_origin`) apply.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
 pub struct PathVertex {
     pub vertex: Vertex,
     pub interaction: Interaction,
@@ -87,7 +87,7 @@ pub fn with_role(scene: &Scene, mut v: Vertex, index: usize, n: usize) -> PathVe
 /// A path of the chain: vertices camera first, emitter last; where it lands on the film; its
 /// contribution f(x̄) in the module's measure and the chain's scalar target f*(x̄) = luminance(f),
 /// both in f64 (`contribution::evaluate` says why).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct PathState {
     pub vertices: Vec<PathVertex>,
     pub raster: Vec2,

@@ -383,6 +383,10 @@ fn proposals_and_rate<S: Serializer>(a: &Option<AcceptanceCount>, s: S) -> Resul
 }
 
 fn per_depth_counts<S: Serializer>(counts: &[AcceptanceCount], s: S) -> Result<S::Ok, S::Error> {
+    // A state file (bincode) keeps the counts themselves, so that they deserialise (pmlt's part).
+    if !s.is_human_readable() {
+        return counts.serialize(s);
+    }
     #[derive(Serialize)]
     struct ProposalsAndRate {
         proposals: u64,
