@@ -202,6 +202,21 @@ fn bad_keys_are_refused_with_their_key() {
             ),
             "environment.turbidity",
         ),
+        (
+            base(
+                "[materials.m]\ntype = \"diffuse\"\n",
+                "[environment]\ntype = \"sun\"\nsun_direction = [0, 1, 0]\nup = [0, 0, 0]\n",
+            ),
+            "environment.up",
+        ),
+        (
+            // Above the default horizon, but below the horizon of a z-up sky: the message names `up`.
+            base(
+                "[materials.m]\ntype = \"diffuse\"\n",
+                "[environment]\ntype = \"sunsky\"\nsun_direction = [0.2, 1, -0.1]\nup = [0, 0, 2]\n",
+            ),
+            "up = [0, 0, 2]",
+        ),
     ];
     for (text, key) in cases {
         let err = load_scene_str(&text, Path::new("."), "bad.toml", None).err().expect("refused").to_string();
@@ -214,4 +229,23 @@ fn bad_keys_are_refused_with_their_key() {
     );
     let loaded = load_scene_str(&ok, Path::new("."), "ok.toml", None).expect("valid");
     assert_eq!(loaded.scene.features().two_sided_materials, 1);
+    // The loader composes `up` into the map: a z-up sky with the sun rotated by R_x(90°) (+y to
+    // +z) shows the sun and the zenith sky where the y-up one does, rotated (without the
+    // composition the rotated sun direction sees sky, ~1e-5 of the sun).
+    let sky = |up: &str, sun: glam::Vec3| {
+        let text = base(
+            "[materials.m]\ntype = \"diffuse\"\n",
+            &format!("[environment]\ntype = \"sunsky\"\nsun_direction = [{}, {}, {}]\n{up}", sun.x, sun.y, sun.z),
+        );
+        load_scene_str(&text, Path::new("."), "sky.toml", None).expect("valid")
+    };
+    let q = glam::Mat3::from_rotation_x(std::f32::consts::FRAC_PI_2);
+    let s = glam::Vec3::new(0.3, 0.8, 0.1).normalize();
+    let (y_up, z_up) = (sky("", s), sky("up = [0, 0, 1]\n", q * s));
+    let l =
+        |scene: &LoadedScene, w: glam::Vec3| scene.scene.environment_light().expect("sky").1.environment_radiance(w);
+    for w in [s, glam::Vec3::Y, glam::Vec3::new(-0.5, 0.4, 0.3).normalize()] {
+        let (a, b) = (l(&y_up, w), l(&z_up, q * w));
+        assert!((a - b).abs().max_element() <= 1e-3 * a.max_element(), "{w}: {a} vs {b}");
+    }
 }

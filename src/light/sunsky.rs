@@ -21,10 +21,15 @@
 //! row 0 — every texel with θ < π/H — is exactly the sun's disk (θ_sun re-rounded to π/H, within
 //! 0.1%), of solid angle 2π(1 − cos θ_sun): the sun is a true small disk, not a delta light, and
 //! its texels carry only sun.
+//!
+//! The model and `bake` work in the sky frame, y up. A scene whose zenith is another world
+//! direction `up` (a Z-up Mitsuba scene, say) is baked in that frame and [`world_to_sky`] is
+//! composed into the map's world-to-map rotation ([`BakedMap::in_world`]), so radiance lookups and
+//! importance sampling both see the rotated sky.
 
 use std::f64::consts::PI;
 
-use glam::{DVec3, Mat3, Vec2, Vec3};
+use glam::{DVec3, Mat3, Quat, Vec2, Vec3};
 
 use super::environment::equirect_to_direction;
 use crate::spectrum::Rgb;
@@ -44,7 +49,7 @@ pub enum SunSkyParts {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SunSky {
     pub parts: SunSkyParts,
-    /// Unit world direction towards the sun (y up), above the horizon.
+    /// Unit direction towards the sun in the sky frame (y up), above the horizon.
     pub sun_direction: Vec3,
     pub turbidity: f32,
     pub albedo: f32,
@@ -58,6 +63,22 @@ pub struct BakedMap {
     pub height: usize,
     pub texels: Vec<Rgb>,
     pub to_local: Mat3,
+}
+
+impl BakedMap {
+    /// The map of a sky baked in the sky frame, placed in a world whose rotation into that frame is
+    /// `world_to_sky`: world → sky frame → map, so `to_local` becomes `to_local · world_to_sky`.
+    pub fn in_world(mut self, world_to_sky: Mat3) -> BakedMap {
+        self.to_local *= world_to_sky;
+        self
+    }
+}
+
+/// The rotation from world space into the sky frame for a sky whose zenith is the unit world
+/// direction `up`: the shortest arc taking `up` to +y (any rotation about the zenith would do; the
+/// shortest arc is the identity for `up` = +y, so y-up scenes bake exactly as before).
+pub fn world_to_sky(up: Vec3) -> Mat3 {
+    Mat3::from_quat(Quat::from_rotation_arc(up, Vec3::Y))
 }
 
 fn xyz_to_srgb(x: f64, y: f64, z: f64) -> DVec3 {
@@ -202,5 +223,58 @@ mod tests {
         assert!(sun.y / zenith.y > 1e4 && zenith.min_element() > 0.0, "{sun:?} {zenith:?}");
         // Clear sky at the zenith is bluer than the sun.
         assert!(zenith.z / zenith.x > sun.z / sun.x);
+    }
+
+    /// A Z-up sky is the Y-up sky rotated: with `up` = +z and the sun rotated by Q = R_x(90°)
+    /// (which takes +y to +z), radiance and the sampling pdf at Q·w equal those of the y-up sky at
+    /// w, for w at the centres of a lattice of 494 texels of the y-up map (sun row, sky, ground;
+    /// texel centres, so float rounding of the rotations cannot move a lookup to a neighbouring
+    /// texel), to 1e-3 relative (the maps agree to ~1e-6). The wrong composition — the map baked
+    /// in the sky frame with `world_to_sky` left out of `to_local` — fails it in 345 of the 494
+    /// directions (measured; the rest are ground texels, uniform in both).
+    #[test]
+    fn up_rotates_the_sky_with_lookups_and_pdf() {
+        use crate::geometry::Aabb;
+        use crate::light::ImageEnvironment;
+        let p = SunSky {
+            parts: SunSkyParts::Both,
+            sun_direction: Vec3::new(0.4, 0.5, -0.6).normalize(),
+            turbidity: 4.0,
+            albedo: 0.3,
+            sun_scale: 1.0,
+            sky_scale: 1.0,
+        };
+        let q = Mat3::from_rotation_x(std::f32::consts::FRAC_PI_2);
+        assert!((q * Vec3::Y - Vec3::Z).length() < 1e-6);
+        let bounds = Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) };
+        let env = |m: BakedMap| ImageEnvironment::new(m.width, m.height, m.texels, 1.0, m.to_local, bounds);
+        let reference = bake(&p);
+        let to_world_y = reference.to_local.transpose();
+        let (width, height) = (reference.width, reference.height);
+        let y_up = env(reference);
+        // What the loader does for `up` = +z and `sun_direction` = Q·s.
+        let to_sky = world_to_sky(Vec3::Z);
+        let z_sky = SunSky { sun_direction: (to_sky * q * p.sun_direction).normalize(), ..p };
+        let z_up = env(bake(&z_sky).in_world(to_sky));
+        let wrong = env(bake(&z_sky));
+        let close = |a: f32, b: f32| (a - b).abs() <= 1e-3 * a.abs().max(b.abs()) + 1e-12;
+        let (mut n, mut wrong_fails) = (0, 0);
+        for j in (0..height).step_by(37) {
+            for i in (0..width).step_by(53) {
+                let d =
+                    equirect_to_direction(Vec2::new((i as f32 + 0.5) / width as f32, (j as f32 + 0.5) / height as f32));
+                let w = (to_world_y * d).normalize();
+                let (l, pdf) = (y_up.radiance(w), y_up.pdf_direction(w));
+                let (lz, pdfz) = (z_up.radiance(q * w), z_up.pdf_direction(q * w));
+                assert!((0..3).all(|c| close(l[c], lz[c])) && close(pdf, pdfz), "{w}: {l:?} {pdf} vs {lz:?} {pdfz}");
+                let (lw, pdfw) = (wrong.radiance(q * w), wrong.pdf_direction(q * w));
+                if !((0..3).all(|c| close(l[c], lw[c])) && close(pdf, pdfw)) {
+                    wrong_fails += 1;
+                }
+                n += 1;
+            }
+        }
+        assert_eq!(n, 494);
+        assert!(wrong_fails > n / 2, "the wrong composition failed only {wrong_fails} of {n}");
     }
 }

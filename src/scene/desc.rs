@@ -300,8 +300,10 @@ pub struct EnvironmentDesc {
     pub file: Option<String>,
     pub scale: Option<f32>,
     pub rotate: Option<Rotations>,
-    /// `sunsky`, `sun`, `sky`: unit direction towards the sun (y up).
+    /// `sunsky`, `sun`, `sky`: direction towards the sun (world space).
     pub sun_direction: Option<[f32; 3]>,
+    /// `sunsky`, `sun`, `sky`: the sky's zenith in world space (default +y).
+    pub up: Option<[f32; 3]>,
     pub turbidity: Option<f32>,
     /// Ground albedo (below the horizon).
     pub albedo: Option<f32>,

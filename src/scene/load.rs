@@ -439,8 +439,8 @@ impl Builder<'_> {
         let allowed: &[&str] = match env.kind.as_str() {
             "constant" => &["radiance", "scale"],
             "image" => &["file", "scale", "rotate"],
-            "sunsky" | "sky" => &["sun_direction", "turbidity", "albedo", "sun_scale", "sky_scale"],
-            "sun" => &["sun_direction", "turbidity", "sun_scale"],
+            "sunsky" | "sky" => &["sun_direction", "up", "turbidity", "albedo", "sun_scale", "sky_scale"],
+            "sun" => &["sun_direction", "up", "turbidity", "sun_scale"],
             other => {
                 return Err(self.err(
                     "environment.type",
@@ -454,6 +454,7 @@ impl Builder<'_> {
             ("scale", env.scale.is_some()),
             ("rotate", env.rotate.is_some()),
             ("sun_direction", env.sun_direction.is_some()),
+            ("up", env.up.is_some()),
             ("turbidity", env.turbidity.is_some()),
             ("albedo", env.albedo.is_some()),
             ("sun_scale", env.sun_scale.is_some()),

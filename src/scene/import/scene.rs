@@ -489,6 +489,9 @@ fn emitter(e: &Rc<Obj>, toml_dir: &Path, w: &mut Warnings) -> Result<Option<Sect
         }
         "sunsky" | "sun" | "sky" => {
             sec.set("type", TVal::str(e.plugin.clone()));
+            // Mitsuba's sky is y-up in its local frame: to_world places the sun computed from the
+            // date (an explicit `sunDirection` is already in world space) and the zenith alike.
+            let to_world = e.transform("to_world")?.map(|(m, _)| m);
             let dir = match e.vector("sun_direction")? {
                 Some(d) => d,
                 None => {
@@ -504,14 +507,20 @@ fn emitter(e: &Rc<Obj>, toml_dir: &Path, w: &mut Warnings) -> Result<Option<Sect
                         timezone: e.float("timezone", 9.0)?,
                     };
                     let local = sun::sun_direction(&t);
-                    let m = e.transform("to_world")?.map_or(DMat4::IDENTITY, |(m, _)| m);
-                    m.transform_vector3(local)
+                    to_world.unwrap_or(DMat4::IDENTITY).transform_vector3(local)
                 }
             };
             if dir.length_squared() == 0.0 {
                 return Err(ImportError::at(&e.loc, "sun_direction must not be zero"));
             }
             sec.set("sun_direction", TVal::vec3(dir.normalize().to_array()));
+            if let Some(m) = to_world {
+                let up = m.transform_vector3(DVec3::Y);
+                if !(up.length_squared() > 0.0) {
+                    return Err(ImportError::at(&e.loc, "to_world maps the sky's zenith (0, 1, 0) to zero"));
+                }
+                sec.set("up", TVal::vec3(up.normalize().to_array()));
+            }
             if e.plugin != "sun" {
                 sec.set("turbidity", TVal::Num(e.float("turbidity", 3.0)?));
                 sec.set("albedo", TVal::Num(e.float("albedo", 0.15)?));

@@ -297,6 +297,26 @@ fn emitters() {
     assert!(lines.contains(&format!("scene.xml:{point_line}: emitter 'point' is not supported")), "{lines}");
 }
 
+/// A sunsky with to_world (the torus scene's Z-up sky) gets `up` = to_world · (0, 1, 0) = +z, and
+/// its date-computed sun is to_world · the local sun, so the sun's elevation above `up` is the
+/// local elevation (sun_direction · up = local y); without to_world no `up` is written (+y).
+#[test]
+fn sunsky_to_world_gives_up() {
+    let d = dir();
+    let sky = r#"<emitter type="sunsky"><transform name="toWorld"><rotate y="1" angle="-30"/><rotate x="1" angle="90"/></transform>
+<float name="hour" value="9"/></emitter>"#;
+    let t = table(&import(d.path(), &scene("0.6.0", SENSOR_06, &format!("{LIT_TRIANGLE_06}\n{sky}"))).unwrap());
+    let e = &t["environment"];
+    let v = |k: &str| glam::DVec3::from_array([0, 1, 2].map(|i| f(&e[k][i])));
+    let (up, sun) = (v("up"), v("sun_direction"));
+    assert!((up - glam::DVec3::Z).length() < 1e-6, "{e}");
+    let local = super::sun::sun_direction(&super::sun::SunTime { hour: 9.0, ..Default::default() });
+    assert!((sun.dot(up) - local.y).abs() < 1e-6 && sun.y < 0.0, "{e}");
+    let sky = r#"<emitter type="sun"><float name="hour" value="9"/></emitter>"#;
+    let t = table(&import(d.path(), &scene("0.6.0", SENSOR_06, &format!("{LIT_TRIANGLE_06}\n{sky}"))).unwrap());
+    assert!(t["environment"].get("up").is_none(), "{}", t["environment"]);
+}
+
 /// Built-in shapes with their flags, a sphere's center and radius folded into the transform, an
 /// unknown parameter reported by name and line, and the default material.
 #[test]

@@ -201,28 +201,46 @@ impl Builder<'_> {
         env: &crate::scene::desc::EnvironmentDesc,
         bounds: &crate::geometry::Aabb,
     ) -> Result<crate::light::Light, SceneError> {
-        use crate::light::sunsky::{bake, SunSky, SunSkyParts};
+        use crate::light::sunsky::{bake, world_to_sky, SunSky, SunSkyParts};
         let parts = match env.kind.as_str() {
             "sun" => SunSkyParts::Sun,
             "sky" => SunSkyParts::Sky,
             _ => SunSkyParts::Both,
         };
+        // A finite, non-zero direction, normalised (scaled by its largest component first, so
+        // that no finite input overflows the length).
+        let unit = |d: [f32; 3]| {
+            let v = glam::Vec3::from(d);
+            let m = v.abs().max_element();
+            (v.is_finite() && m > 0.0).then(|| (v / m).normalize())
+        };
+        let show = |d: [f32; 3]| format!("[{}, {}, {}]", d[0], d[1], d[2]);
+        let up_desc = env.up.unwrap_or([0.0, 1.0, 0.0]);
+        let up = unit(up_desc).ok_or_else(|| {
+            self.err(
+                "environment.up",
+                format!("expected a finite, non-zero direction (the zenith), got {}", show(up_desc)),
+            )
+        })?;
+        // The model is y-up: bake in the frame where `up` is +y, then compose that rotation into
+        // the map's world-to-map rotation.
+        let to_sky = world_to_sky(up);
         let d = env.sun_direction.ok_or_else(|| {
             self.err(
                 "environment",
                 format!("a '{}' environment needs 'sun_direction' ([x, y, z], towards the sun)", env.kind),
             )
         })?;
-        let dir = glam::Vec3::from(d);
-        if !dir.is_finite() || !(dir.length() > 0.0) || !(dir.normalize().y > 0.0) {
-            return Err(self.err(
+        let sun = unit(d).map(|s| (to_sky * s).normalize()).filter(|s| s.y > 0.0).ok_or_else(|| {
+            self.err(
                 "environment.sun_direction",
                 format!(
-                    "expected a finite direction above the horizon (y > 0; y is up), got [{}, {}, {}]",
-                    d[0], d[1], d[2]
+                    "expected a finite direction above the horizon (sun_direction · up > 0, up = {}), got {}",
+                    show(up_desc),
+                    show(d)
                 ),
-            ));
-        }
+            )
+        })?;
         let number = |k: &str, v: Option<f32>, default: f32, lo: f32, hi: f32| -> Result<f32, SceneError> {
             let x = v.unwrap_or(default);
             if x.is_finite() && (lo..=hi).contains(&x) {
@@ -233,14 +251,14 @@ impl Builder<'_> {
         };
         let p = SunSky {
             parts,
-            sun_direction: dir.normalize(),
+            sun_direction: sun,
             // Preetham's fit covers turbidity 2 to 10.
             turbidity: number("turbidity", env.turbidity, 3.0, 2.0, 10.0)?,
             albedo: number("albedo", env.albedo, 0.15, 0.0, 1.0)?,
             sun_scale: number("sun_scale", env.sun_scale, 1.0, 0.0, f32::MAX)?,
             sky_scale: number("sky_scale", env.sky_scale, 1.0, 0.0, f32::MAX)?,
         };
-        let map = bake(&p);
+        let map = bake(&p).in_world(to_sky);
         Ok(crate::light::Light::ImageEnvironment(crate::light::ImageEnvironment::new(
             map.width,
             map.height,
