@@ -279,6 +279,12 @@ fn mlt_settings_are_validated() {
 /// it, so the renders split into those with and without the lamp and the image mean's standard
 /// error was 0.00705 (5.2% of the mean) — the power check fails before the regions are compared.
 /// Runtime: 26 s on 2 cores under load ~10 (other engineers' builds running).
+///
+/// Since each chain chooses its depth from the bootstrap and its own large steps (so that shards
+/// reproduce the whole render, issue 21) instead of the totals pooled over all chains, the depth
+/// choice is noisier: at 256 mutations per pixel the image mean's standard error rose from below
+/// the power bound to 0.00270 (2.0% of the mean; bound 0.00136) with the mean still right (0.13640
+/// vs pt 0.13609), so MMLT now renders 1536 mutations per pixel here (standard error ∝ 1/√N).
 #[test]
 fn mlt_renders_depths_the_bootstrap_missed() {
     let scene = scene("cornell-box", 32);
@@ -290,7 +296,7 @@ fn mlt_renders_depths_the_bootstrap_missed() {
         assert!(depth0["iterations"].as_u64().unwrap_or(0) > 0, "{method}: depth 0 never iterated: {depth0}");
     }
     let pt = estimate(&scene, "pt", "max_depth = 8", 256, 11);
-    let mmlt = estimate(&scene, "mmlt", params, 256, 11);
+    let mmlt = estimate(&scene, "mmlt", params, 1536, 11);
     assert_agree("mmlt with a 20-path bootstrap vs pt", mmlt, pt);
 }
 
