@@ -18,7 +18,7 @@ use super::driver::{ImagePart, ImageRender, ImageRun};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
-use crate::state::{RenderState, Session, SessionOutput};
+use crate::state::{RenderState, Session};
 
 /// Settings of `integrator = "light"`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -66,20 +66,15 @@ impl Integrator for LightTracer {
         serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
     }
 
-    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
-        self.render_run(scene, job, progress).map(|run| run.output)
-    }
-
-    fn render_session(
+    fn run_session(
         &self,
         scene: &Scene,
         job: &RenderJob,
         progress: &dyn Progress,
         session: &Session,
-    ) -> Result<SessionOutput, RenderError> {
-        let run = self.render_run_session(scene, job, progress, *session, true)?;
-        let state = run.state.ok_or_else(|| self.no_state())?;
-        Ok(SessionOutput { output: run.output, state })
+        save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
+        self.render_run_session(scene, job, progress, *session, save).map(ImageRun::into_session)
     }
 
     fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {

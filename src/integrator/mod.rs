@@ -158,19 +158,38 @@ pub trait Integrator: Send + Sync {
     fn name(&self) -> &'static str;
     /// The settings in effect, for the stats report.
     fn settings_json(&self) -> serde_json::Value;
-    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError>;
 
-    /// The render under a `Session` (issues 19 and 21): resumed from a state, as a shard, stopped
-    /// early, checkpointed; returns the image of everything rendered and the state reached
-    /// (`crate::state`). Integrators that cannot save their units keep this default, which refuses.
-    fn render_session(
+    /// The one render an integrator implements (issues 19 and 21): under `session` (resumed from a
+    /// state, as a shard, stopped early, checkpointed), returning the image of everything rendered
+    /// and, with `save`, the state reached (`crate::state`). `render` and `render_session` are
+    /// this. An integrator that cannot save its units overrides `render` instead and keeps this
+    /// default, which refuses.
+    fn run_session(
         &self,
         _scene: &Scene,
         _job: &RenderJob,
         _progress: &dyn Progress,
         _session: &Session,
-    ) -> Result<SessionOutput, RenderError> {
+        _save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
         Err(self.no_state())
+    }
+
+    /// A whole render from the start: `run_session` without a session or a state.
+    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
+        Ok(self.run_session(scene, job, progress, &Session::default(), false)?.0)
+    }
+
+    /// The render under a `Session`, with the state it reached: `run_session` with `save`.
+    fn render_session(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+    ) -> Result<SessionOutput, RenderError> {
+        let (output, state) = self.run_session(scene, job, progress, session, true)?;
+        Ok(SessionOutput { output, state: state.ok_or_else(|| self.no_state())? })
     }
 
     /// The normalised image, counters and statistics of a state (a resumed render that had

@@ -23,7 +23,7 @@ use crate::material::TransportMode;
 use crate::sampling::Rng;
 use crate::scene::Scene;
 use crate::spectrum::{is_finite, Rgb};
-use crate::state::{RenderState, Session, SessionOutput};
+use crate::state::{RenderState, Session};
 use crate::stats::Counters;
 
 /// How the two direct-lighting techniques are combined.
@@ -294,20 +294,15 @@ impl Integrator for PathTracer {
         serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
     }
 
-    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
-        self.render_run(scene, job, progress).map(|run| run.output)
-    }
-
-    fn render_session(
+    fn run_session(
         &self,
         scene: &Scene,
         job: &RenderJob,
         progress: &dyn Progress,
         session: &Session,
-    ) -> Result<SessionOutput, RenderError> {
-        let run = self.render_run_session(scene, job, progress, *session, true)?;
-        let state = run.state.ok_or_else(|| self.no_state())?;
-        Ok(SessionOutput { output: run.output, state })
+        save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
+        self.render_run_session(scene, job, progress, *session, save).map(ImageRun::into_session)
     }
 
     fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {

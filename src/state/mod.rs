@@ -19,11 +19,13 @@
 //!
 //! # Integrators
 //!
-//! An integrator that can be checkpointed implements [`Integrator::render_session`] (render from a
+//! An integrator that can be checkpointed implements [`Integrator::run_session`] (render from a
 //! [`Session`]: resume, shard, stop, periodic checkpoints), [`Integrator::output_of_state`] (the
 //! normalised image of a state: resume's and merge's output) and [`Integrator::merge_parts`]. What
 //! its units and slots carry is its own `part` of the state, written with [`encode`]; a unit type
-//! implements [`UnitState`].
+//! implements [`UnitState`]. The driver holds what the integrators of a kind share around their
+//! sessions: `ImageRender` and `ImagePart` for the image-space ones, `ChainSession` and
+//! `merge_chain_parts` for the Markov chain ones (`integrator::driver`).
 
 mod merge;
 mod scene_hash;

@@ -1,5 +1,5 @@
 //! How a render is run beyond its job: from a saved state, as a shard, until told to stop, with
-//! periodic checkpoints. Integrators take a [`Session`] in `Integrator::render_session` and hand
+//! periodic checkpoints. Integrators take a [`Session`] in `Integrator::run_session` and hand
 //! back the image with the [`RenderState`] it reached.
 
 use std::fmt;

@@ -39,7 +39,7 @@ use crate::film::{Accumulator, SplatBuffer};
 use crate::sampling::{Rng, UniformSource};
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
-use crate::state::{RenderState, Session, SessionOutput};
+use crate::state::{RenderState, Session};
 use crate::stats::Counters;
 
 /// What subpath generation and technique evaluation need besides the subpaths: the scene and the
@@ -255,17 +255,14 @@ impl Integrator for Bdpt {
         serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
     }
 
-    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
-        self.render_run(scene, job, progress).map(|run| run.output)
-    }
-
-    fn render_session(
+    fn run_session(
         &self,
         scene: &Scene,
         job: &RenderJob,
         progress: &dyn Progress,
         session: &Session,
-    ) -> Result<SessionOutput, RenderError> {
+        save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
         if self.settings.technique_images && (session.resume.is_some() || session.shard.is_some()) {
             // The layers are per-slot films (their low bits depend on the threads), not in a state.
             return Err(crate::state::StateError::Mismatch(
@@ -273,9 +270,7 @@ impl Integrator for Bdpt {
             )
             .into());
         }
-        let run = self.render_run_session(scene, job, progress, *session, true)?;
-        let state = run.state.ok_or_else(|| self.no_state())?;
-        Ok(SessionOutput { output: run.output, state })
+        self.render_run_session(scene, job, progress, *session, save).map(ImageRun::into_session)
     }
 
     fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {

@@ -213,6 +213,13 @@ pub struct ImageRun {
     pub state: Option<RenderState>,
 }
 
+impl ImageRun {
+    /// The output and the state: what `Integrator::run_session` returns.
+    pub fn into_session(self) -> (RenderOutput, Option<RenderState>) {
+        (self.output, self.state)
+    }
+}
+
 impl<'a> ImageRender<'a> {
     /// A render of the job on a `width`×`height` film, on the wall clock.
     pub fn new(job: &RenderJob, width: u32, height: u32, progress: &'a dyn Progress) -> Result<Self, RenderError> {

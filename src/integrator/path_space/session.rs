@@ -5,20 +5,23 @@
 //! chains (random stream and current path with its f and f*, written through `UnitState`) and the
 //! slots' statistics merged, whose iteration counts the normalisation divides by.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
 use super::chain::{new_stats, step, ChainUnit, Pmlt, PmltRun, SlotState};
 use super::PathContext;
 use crate::film::Accumulator;
-use crate::integrator::driver::{state_film, CheckpointHook, Driver, PassBoundary, PassSet, Passes, RunStart, Slot};
+use crate::integrator::driver::{
+    boundary_counters, load_units, merge_chain_parts, merge_slot_states, save_units, state_film, ChainPart,
+    ChainSession, CheckpointHook, Driver, PassBoundary, PassSet, RunStart, Slot, Tally,
+};
 use crate::integrator::pss::bootstrap::run_bootstrap;
 use crate::integrator::pss::stats::MltStats;
 use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::Distribution1D;
 use crate::scene::Scene;
-use crate::state::{decode, encode, RenderState, Session, SessionOutput, StateError, UnitState};
+use crate::state::{decode, RenderState, Session, StateError};
 use crate::stats::{AcceptanceCount, Counters};
 
 /// The bootstrap's outcome: the sum of the targets of `paths` BDPT samples (b = sum / paths).
@@ -53,12 +56,21 @@ struct PmltPart {
     units: Vec<(u64, Vec<u8>)>,
 }
 
-/// The render-level figures of an output.
-struct Tally {
-    passes: u64,
-    segment: u64,
-    counters: Counters,
-    wall: Duration,
+impl ChainPart for PmltPart {
+    fn units_mut(&mut self) -> &mut Vec<(u64, Vec<u8>)> {
+        &mut self.units
+    }
+
+    fn absorb(&mut self, other: &PmltPart) -> Result<(), StateError> {
+        let same_bootstrap = (self.bootstrap.sum, self.bootstrap.paths) == (other.bootstrap.sum, other.bootstrap.paths);
+        if !same_bootstrap || self.segment != other.segment {
+            return Err(StateError::Mismatch("the shards did not start from the same bootstrap".into()));
+        }
+        // Per depth and per strategy: counts add (`MltStats::merge`).
+        self.stats.merge(&other.stats);
+        self.unstarted += other.unstarted;
+        Ok(())
+    }
 }
 
 impl Integrator for Pmlt {
@@ -70,19 +82,15 @@ impl Integrator for Pmlt {
         serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
     }
 
-    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
-        self.render_run(scene, job, progress).map(|run| run.output)
-    }
-
-    fn render_session(
+    fn run_session(
         &self,
         scene: &Scene,
         job: &RenderJob,
         progress: &dyn Progress,
         session: &Session,
-    ) -> Result<SessionOutput, RenderError> {
-        let (run, state) = self.run_session(scene, job, progress, session, true)?;
-        Ok(SessionOutput { output: run.output, state: state.ok_or_else(|| self.no_state())? })
+        save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
+        self.run_session_film(scene, job, progress, session, save).map(|(run, state)| (run.output, state))
     }
 
     fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
@@ -94,42 +102,19 @@ impl Integrator for Pmlt {
     }
 
     fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
-        let mut merged: Option<PmltPart> = None;
-        for bytes in parts {
-            let part: PmltPart = decode(bytes)?;
-            let Some(m) = merged.as_mut() else {
-                merged = Some(part);
-                continue;
-            };
-            let same_bootstrap = (m.bootstrap.sum, m.bootstrap.paths) == (part.bootstrap.sum, part.bootstrap.paths);
-            if !same_bootstrap || m.segment != part.segment {
-                return Err(StateError::Mismatch("the shards did not start from the same bootstrap".into()).into());
-            }
-            // Per depth and per strategy: counts add (`MltStats::merge`).
-            m.stats.merge(&part.stats);
-            m.unstarted += part.unstarted;
-            m.units.extend(part.units);
-        }
-        let mut merged = merged.ok_or_else(|| StateError::Mismatch("no shard".into()))?;
-        merged.units.sort_by_key(|(index, _)| *index);
-        if let Some(pair) = merged.units.windows(2).find(|pair| pair[0].0 == pair[1].0) {
-            return Err(
-                StateError::Mismatch(format!("chain {} is in two shards: their units overlap", pair[0].0)).into()
-            );
-        }
-        Ok(encode(&merged)?)
+        merge_chain_parts::<PmltPart>(parts)
     }
 }
 
 impl Pmlt {
     /// The render with its unnormalised film (for tests that check the film's bits).
     pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<PmltRun, RenderError> {
-        self.run_session(scene, job, progress, &Session::default(), false).map(|(run, _)| run)
+        self.run_session_film(scene, job, progress, &Session::default(), false).map(|(run, _)| run)
     }
 
     /// The render under `session`; with `save`, also the state it reached (which then takes the
     /// film, and `PmltRun::film` is empty).
-    fn run_session(
+    fn run_session_film(
         &self,
         scene: &Scene,
         job: &RenderJob,
@@ -141,7 +126,7 @@ impl Pmlt {
         let pixels = (width * height) as u64;
         crate::integrator::check_budget(job.budget, scene.camera.width, scene.camera.height, "budget")?;
         let driver = Driver::new(job, scene.camera.width, scene.camera.height)?;
-        let render_start = Instant::now();
+        let mut cs = ChainSession::new(session, self.settings.chains);
         let max_depth = self.settings.max_depth as usize;
         let ctx = PathContext { scene, max_depth };
         let bctx = self.bdpt_context(scene);
@@ -153,103 +138,83 @@ impl Pmlt {
 
         // Where the chains start: a saved state, or the bootstrap.
         let mut counters_before = Counters::default();
-        let (boot, unstarted, units, saved_slot, film, next_pass, earlier) = match session.resume {
-            Some(state) => {
-                if (state.film_width, state.film_height) != (scene.camera.width, scene.camera.height)
-                    || state.unit_count != self.settings.chains
-                {
-                    return Err(
-                        StateError::Mismatch("the checkpoint's film or chains do not match the scene".into()).into()
+        let (boot, unstarted, units, saved_slot, film, next_pass) =
+            match cs.resumed::<PmltPart>(scene.camera.width, scene.camera.height)? {
+                Some((state, part)) => {
+                    let units: Vec<ChainUnit> = load_units(&part.units)?;
+                    let mut slot = self.new_slot(&set);
+                    slot.stats = part.stats;
+                    let saved = (state.counters.clone(), slot);
+                    (part.bootstrap, part.unstarted, units, Some(saved), Some(state_film(state)), state.passes_done)
+                }
+                None => {
+                    // A shard's bootstrap must be the same in every shard: a time budget may not
+                    // shorten it there.
+                    let time_budget = match job.budget {
+                        Budget::Seconds(s) if shard.is_none() => Some(s),
+                        _ => None,
+                    };
+                    let run = run_bootstrap(
+                        &driver,
+                        progress,
+                        1,
+                        self.settings.bootstrap,
+                        time_budget,
+                        |_| self.new_slot(&set),
+                        |_, i, slot, counters| self.bootstrap_sample(&bctx, job.seed, i, slot, counters, None),
                     );
+                    counters_before = run.counters;
+                    let boot = BootstrapPart { sum: run.sums[0], paths: run.paths, seconds: run.elapsed.as_secs_f64() };
+                    if !(boot.b() > 0.0) {
+                        // No light found: a black image, and a complete state.
+                        let film = Accumulator::new(width, height);
+                        let stats = new_stats(max_depth, &set);
+                        let tally = Tally { passes: 0, segment, counters: counters_before, wall: cs.elapsed() };
+                        let output = self.output(&film, stats.clone(), &boot, 0, tally);
+                        let part = PmltPart { bootstrap: boot, segment, unstarted: 0, stats, units: Vec::new() };
+                        let (film, state) =
+                            cs.finish(film, &output.counters, save.then_some(part), 0, true, false, output.wall_time)?;
+                        return Ok((PmltRun { output, film }, state));
+                    }
+                    // Start the chains (of the shard) from resampled bootstrap paths (`chain` docs).
+                    let start = Distribution1D::new(&run.targets[0]);
+                    let mut init_slot = self.new_slot(&set);
+                    let mut candidates = Vec::new();
+                    let units: Vec<ChainUnit> = (0..self.settings.chains)
+                        .filter(|c| shard.is_none_or(|s| s.contains(*c)))
+                        .map(|c| {
+                            let (seed, slot) = (job.seed, &mut init_slot);
+                            self.start_chain(c, &start, &ctx, &bctx, seed, slot, &mut counters_before, &mut candidates)
+                        })
+                        .collect();
+                    let unstarted = units.iter().filter(|u| !(u.current.f_star > 0.0)).count() as u64;
+                    (boot, unstarted, units, None, None, 0)
                 }
-                let part: PmltPart = decode(&state.part)?;
-                let units =
-                    part.units.iter().map(|(_, bytes)| ChainUnit::load(bytes)).collect::<Result<Vec<_>, _>>()?;
-                let mut slot = self.new_slot(&set);
-                slot.stats = part.stats;
-                let saved = (state.counters.clone(), slot);
-                let film = state_film(state);
-                (part.bootstrap, part.unstarted, units, Some(saved), Some(film), state.passes_done, state.wall_time_s)
-            }
-            None => {
-                // A shard's bootstrap must be the same in every shard: a time budget may not
-                // shorten it there.
-                let time_budget = match job.budget {
-                    Budget::Seconds(s) if shard.is_none() => Some(s),
-                    _ => None,
-                };
-                let run = run_bootstrap(
-                    &driver,
-                    progress,
-                    1,
-                    self.settings.bootstrap,
-                    time_budget,
-                    |_| self.new_slot(&set),
-                    |_, i, slot, counters| self.bootstrap_sample(&bctx, job.seed, i, slot, counters, None),
-                );
-                counters_before = run.counters;
-                let boot = BootstrapPart { sum: run.sums[0], paths: run.paths, seconds: run.elapsed.as_secs_f64() };
-                if !(boot.b() > 0.0) {
-                    // No light found: a black image, and a complete state.
-                    let film = Accumulator::new(width, height);
-                    let stats = new_stats(max_depth, &set);
-                    let tally = Tally { passes: 0, segment, counters: counters_before, wall: render_start.elapsed() };
-                    let output = self.output(&film, stats.clone(), &boot, 0, tally);
-                    let part = PmltPart { bootstrap: boot, segment, unstarted: 0, stats, units: Vec::new() };
-                    let state =
-                        save.then(|| self.state(film.clone(), &output.counters, &part, 0, true, output.wall_time));
-                    return Ok((PmltRun { output, film }, state.transpose()?));
-                }
-                // Start the chains (of the shard) from resampled bootstrap paths (`chain` docs).
-                let start = Distribution1D::new(&run.targets[0]);
-                let mut init_slot = self.new_slot(&set);
-                let mut candidates = Vec::new();
-                let units: Vec<ChainUnit> = (0..self.settings.chains)
-                    .filter(|c| shard.is_none_or(|s| s.contains(*c)))
-                    .map(|c| {
-                        let (seed, slot) = (job.seed, &mut init_slot);
-                        self.start_chain(c, &start, &ctx, &bctx, seed, slot, &mut counters_before, &mut candidates)
-                    })
-                    .collect();
-                let unstarted = units.iter().filter(|u| !(u.current.f_star > 0.0)).count() as u64;
-                (boot, unstarted, units, None, None, 0, 0.0)
-            }
-        };
+            };
 
-        let passes = match job.budget {
-            Budget::SamplesPerPixel(mpp) => {
-                let n = (mpp * pixels).div_ceil(per_pass);
-                progress.set_total(n.saturating_sub(next_pass) * segment * units.len() as u64);
-                Passes::Count(n)
-            }
-            Budget::Seconds(s) => Passes::Seconds((s - render_start.elapsed().as_secs_f64()).max(0.0)),
-        };
+        let passes = cs.passes(job.budget, pixels, per_pass, segment, units.len(), next_pass, progress);
         progress.message("mutating");
         let b = boot.b();
         let preview = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
             let n: u64 = at.slots.iter().map(|s| iterations(&s.state.stats)).sum();
             at.film.to_image(scale(b, pixels, n))
         };
-        let complete_at = |p: u64| matches!(passes, Passes::Count(n) if p >= n);
         let checkpoint = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
-            let Some(sink) = session.checkpoint else { return };
-            let mut counters = counters_before.clone();
-            let mut stats = new_stats(max_depth, &set);
-            for (i, slot) in at.slots.iter().enumerate() {
-                counters.merge(&slot.counters);
-                if i == 0 {
-                    stats = slot.state.stats.clone();
-                } else {
-                    stats.merge(&slot.state.stats);
+            cs.checkpoint(progress, || {
+                let counters = boundary_counters(&counters_before, at.slots);
+                let mut stats = new_stats(max_depth, &set);
+                for (i, slot) in at.slots.iter().enumerate() {
+                    if i == 0 {
+                        stats = slot.state.stats.clone();
+                    } else {
+                        stats.merge(&slot.state.stats);
+                    }
                 }
-            }
-            let wall = render_start.elapsed() + Duration::try_from_secs_f64(earlier).unwrap_or_default();
-            match self.part(&boot, segment, unstarted, stats, at.units).and_then(|part| {
-                self.state(at.film.clone(), &counters, &part, at.passes_done, complete_at(at.passes_done), wall)
-            }) {
-                Ok(state) => sink(state),
-                Err(e) => progress.message(&format!("checkpoint not written: {e}")),
-            }
+                let boot = BootstrapPart { seconds: cs.saved_seconds(boot.seconds), ..boot.clone() };
+                let part = self.part(&boot, segment, unstarted, stats, at.units)?;
+                let done = at.passes_done;
+                cs.state(at.film.clone(), &counters, &part, done, cs.complete_at(done), cs.wall())
+            })
         };
         let start = RunStart { units, next_pass, film, saved_slot, passes: PassSet::ALL };
         let out = driver.run_from(
@@ -278,33 +243,18 @@ impl Pmlt {
             session.checkpoint.is_some().then_some(&checkpoint as &CheckpointHook<'_, _, _>),
         );
 
-        let mut slots = out.slot_states.into_iter();
-        let Some(mut merged) = slots.next() else {
-            return Err(RenderError::Settings("no worker ran".into()));
-        };
-        for s in slots {
-            merged.stats.merge(&s.stats);
-        }
+        let merged = merge_slot_states(out.slot_states, |m, s| m.stats.merge(&s.stats))?;
         let mut counters = out.counters;
         counters.merge(&counters_before);
-        let wall = render_start.elapsed() + Duration::try_from_secs_f64(earlier).unwrap_or_default();
-        let boot_for_state =
-            BootstrapPart { seconds: if shard.is_some() { 0.0 } else { boot.seconds }, ..boot.clone() };
+        let boot_for_state = BootstrapPart { seconds: cs.saved_seconds(boot.seconds), ..boot.clone() };
         let part = save
             .then(|| self.part(&boot_for_state, segment, unstarted, merged.stats.clone(), &out.units))
             .transpose()?;
-        let tally = Tally { passes: out.passes, segment, counters, wall };
+        let tally = Tally { passes: out.passes, segment, counters, wall: cs.wall() };
         let output = self.output(&out.film, merged.stats, &boot, unstarted, tally);
-        let (film, state) = match part {
-            Some(part) => {
-                let wall = if shard.is_some() { Duration::ZERO } else { output.wall_time };
-                let mut state =
-                    self.state(out.film, &output.counters, &part, out.passes, complete_at(out.passes), wall)?;
-                state.interrupted = out.stopped;
-                (Accumulator::new(0, 0), Some(state))
-            }
-            None => (out.film, None),
-        };
+        let complete = cs.complete_at(out.passes);
+        let (film, state) =
+            cs.finish(out.film, &output.counters, part, out.passes, complete, out.stopped, output.wall_time)?;
         Ok((PmltRun { output, film }, state))
     }
 
@@ -318,31 +268,8 @@ impl Pmlt {
         stats: MltStats,
         units: &[ChainUnit],
     ) -> Result<PmltPart, StateError> {
-        let units = units.iter().map(|u| Ok((u.index, u.save()?))).collect::<Result<Vec<_>, StateError>>()?;
+        let units = save_units(units, |u| u.index)?;
         Ok(PmltPart { bootstrap: boot.clone(), segment, unstarted, stats, units })
-    }
-
-    fn state(
-        &self,
-        film: Accumulator,
-        counters: &Counters,
-        part: &PmltPart,
-        passes_done: u64,
-        complete: bool,
-        wall: Duration,
-    ) -> Result<RenderState, StateError> {
-        Ok(RenderState {
-            passes_done,
-            unit_count: self.settings.chains,
-            film_width: film.width as u32,
-            film_height: film.height as u32,
-            film: film.into_sums(),
-            counters: counters.clone(),
-            part: encode(part)?,
-            complete,
-            interrupted: false,
-            wall_time_s: wall.as_secs_f64(),
-        })
     }
 
     /// The image and statistics of a film with the merged statistics: the film times b·P/N (`chain`

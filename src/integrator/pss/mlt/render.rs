@@ -4,21 +4,24 @@
 //! themselves (sampler, current path, random stream, large-step totals) and the slots' statistics
 //! merged, whose per-depth iteration counts the normalisation divides by.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
 use super::{Bootstrap, ChainUnit, Mlt, MltRun, SlotState, SubChain, CHAIN_SEED_SALT};
 use super::{PathState, SUBCHAIN_SEED_SALT};
 use crate::film::Accumulator;
-use crate::integrator::driver::{state_film, Driver, PassBoundary, PassSet, Passes, RunStart, Slot};
+use crate::integrator::driver::{
+    boundary_counters, load_units, merge_chain_parts, merge_slot_states, save_units, state_film, ChainPart,
+    ChainSession, CheckpointHook, Driver, PassBoundary, PassSet, RunStart, Slot, Tally,
+};
 use crate::integrator::pss::bootstrap::run_bootstrap;
 use crate::integrator::pss::sampler::PssSampler;
 use crate::integrator::pss::stats::{MltStats, MoveStats};
 use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::{Distribution1D, Rng};
 use crate::scene::Scene;
-use crate::state::{decode, encode, RenderState, Session, SessionOutput, StateError, UnitState};
+use crate::state::{decode, RenderState, Session, StateError};
 use crate::stats::{AcceptanceCount, Counters};
 
 /// The bootstrap's outcome: per depth the sum of the targets of `paths` uniform samples, and the
@@ -47,6 +50,27 @@ struct MltPart {
     units: Vec<(u64, Vec<u8>)>,
 }
 
+impl ChainPart for MltPart {
+    fn units_mut(&mut self) -> &mut Vec<(u64, Vec<u8>)> {
+        &mut self.units
+    }
+
+    fn absorb(&mut self, other: &MltPart) -> Result<(), StateError> {
+        let same_bootstrap =
+            (&self.bootstrap.sums, self.bootstrap.paths) == (&other.bootstrap.sums, other.bootstrap.paths);
+        if !same_bootstrap || self.segment != other.segment {
+            return Err(StateError::Mismatch("the shards did not start from the same bootstrap".into()));
+        }
+        self.stats.merge(&other.stats);
+        if let (Some(a), Some(b)) = (self.count_films.as_mut(), other.count_films.as_ref()) {
+            for (x, y) in a.iter_mut().flatten().zip(b.iter().flatten()) {
+                x.merge(y);
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Integrator for Mlt {
     fn name(&self) -> &'static str {
         self.variant.name()
@@ -56,24 +80,20 @@ impl Integrator for Mlt {
         serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
     }
 
-    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
-        self.render_run(scene, job, progress).map(|run| run.output)
-    }
-
-    fn render_session(
+    fn run_session(
         &self,
         scene: &Scene,
         job: &RenderJob,
         progress: &dyn Progress,
         session: &Session,
-    ) -> Result<SessionOutput, RenderError> {
-        let (run, state) = self.run_session(scene, job, progress, session, true)?;
-        Ok(SessionOutput { output: run.output, state: state.ok_or_else(|| self.no_state())? })
+        save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
+        self.run_session_film(scene, job, progress, session, save).map(|(run, state)| (run.output, state))
     }
 
     fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
         let part: MltPart = decode(&state.part)?;
-        let units = part.units.iter().map(|(_, bytes)| ChainUnit::load(bytes)).collect::<Result<Vec<_>, _>>()?;
+        let units: Vec<ChainUnit> = load_units(&part.units)?;
         let film = state_film(state);
         let depths = self.depth_count();
         if !film.height.is_multiple_of(depths) {
@@ -88,33 +108,7 @@ impl Integrator for Mlt {
     }
 
     fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
-        let mut merged: Option<MltPart> = None;
-        for bytes in parts {
-            let part: MltPart = decode(bytes)?;
-            let Some(m) = merged.as_mut() else {
-                merged = Some(part);
-                continue;
-            };
-            let same_bootstrap = (&m.bootstrap.sums, m.bootstrap.paths) == (&part.bootstrap.sums, part.bootstrap.paths);
-            if !same_bootstrap || m.segment != part.segment {
-                return Err(StateError::Mismatch("the shards did not start from the same bootstrap".into()).into());
-            }
-            m.stats.merge(&part.stats);
-            if let (Some(a), Some(b)) = (m.count_films.as_mut(), part.count_films.as_ref()) {
-                for (x, y) in a.iter_mut().flatten().zip(b.iter().flatten()) {
-                    x.merge(y);
-                }
-            }
-            m.units.extend(part.units);
-        }
-        let mut merged = merged.ok_or_else(|| StateError::Mismatch("no shard".into()))?;
-        merged.units.sort_by_key(|(index, _)| *index);
-        if let Some(pair) = merged.units.windows(2).find(|pair| pair[0].0 == pair[1].0) {
-            return Err(
-                StateError::Mismatch(format!("chain {} is in two shards: their units overlap", pair[0].0)).into()
-            );
-        }
-        Ok(encode(&merged)?)
+        merge_chain_parts::<MltPart>(parts)
     }
 }
 
@@ -122,24 +116,16 @@ impl Integrator for Mlt {
 /// depth it found no light at).
 type StartDistributions = Vec<Option<Distribution1D>>;
 
-/// The render-level figures of an output.
-struct Tally {
-    passes: u64,
-    segment: u64,
-    counters: Counters,
-    wall: Duration,
-}
-
 impl Mlt {
     /// The render with the driver's stacked per-depth film (`Integrator::render` keeps only the
     /// output).
     pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<MltRun, RenderError> {
-        self.run_session(scene, job, progress, &Session::default(), false).map(|(run, _)| run)
+        self.run_session_film(scene, job, progress, &Session::default(), false).map(|(run, _)| run)
     }
 
     /// The render under `session`; with `save`, also the state it reached (which then takes the
     /// film, and `MltRun::film` is empty).
-    fn run_session(
+    fn run_session_film(
         &self,
         scene: &Scene,
         job: &RenderJob,
@@ -159,30 +145,21 @@ impl Mlt {
         let driver = Driver::new(job, width as u32, stacked_height)?;
         let rr = if self.settings.rr_depth == u32::MAX { usize::MAX } else { self.settings.rr_depth as usize };
         let ctx = crate::integrator::bdpt::BdptContext::new(scene, rr, self.settings.mis);
-        let render_start = Instant::now();
+        let mut cs = ChainSession::new(session, self.settings.chains);
         let segment = pixels.div_ceil(self.settings.chains).max(1);
         let per_pass = segment * self.settings.chains;
         let shard = session.shard;
 
         // Where the chains start: a saved state, or the bootstrap.
         let mut counters_before = Counters::default();
-        let (boot, units, saved_slot, film, next_pass, earlier) = match session.resume {
-            Some(state) => {
-                if (state.film_width, state.film_height) != (width as u32, stacked_height)
-                    || state.unit_count != self.settings.chains
-                {
-                    return Err(
-                        StateError::Mismatch("the checkpoint's film or chains do not match the scene".into()).into()
-                    );
-                }
-                let part: MltPart = decode(&state.part)?;
-                let units =
-                    part.units.iter().map(|(_, bytes)| ChainUnit::load(bytes)).collect::<Result<Vec<_>, _>>()?;
+        let (boot, units, saved_slot, film, next_pass) = match cs.resumed::<MltPart>(width as u32, stacked_height)? {
+            Some((state, part)) => {
+                let units: Vec<ChainUnit> = load_units(&part.units)?;
                 let mut slot = self.new_slot(width, height);
                 slot.stats = part.stats;
                 slot.count_films = part.count_films;
                 let saved = (state.counters.clone(), slot);
-                (part.bootstrap, units, Some(saved), Some(state_film(state)), state.passes_done, state.wall_time_s)
+                (part.bootstrap, units, Some(saved), Some(state_film(state)), state.passes_done)
             }
             None => {
                 let (boot, boot_counters, dists) = self.bootstrap(&driver, &ctx, job, progress, shard.is_some())?;
@@ -190,34 +167,26 @@ impl Mlt {
                 let Some(dists) = dists else {
                     // No light found: a black image, and a complete state.
                     let film = Accumulator::new(width, height * depths);
-                    let tally = Tally { passes: 0, segment, counters: counters_before, wall: render_start.elapsed() };
+                    let tally = Tally { passes: 0, segment, counters: counters_before, wall: cs.elapsed() };
                     let mut empty = self.new_slot(0, 0);
                     empty.count_films = None;
                     let stats = empty.stats.clone();
                     let output = self.output(&film, &[], empty, &boot, tally);
                     let part = MltPart { bootstrap: boot, segment, stats, count_films: None, units: Vec::new() };
-                    let state = save.then(|| self.state(film, &output.counters, &part, 0, true, output.wall_time));
-                    return Ok((MltRun { output, film: Accumulator::new(width, height * depths) }, state.transpose()?));
+                    let (film, state) =
+                        cs.finish(film, &output.counters, save.then_some(part), 0, true, false, output.wall_time)?;
+                    return Ok((MltRun { output, film }, state));
                 };
                 let chains = (0..self.settings.chains).filter(|c| shard.is_none_or(|s| s.contains(*c)));
                 let mut init_slot = self.new_slot(0, 0);
                 let units: Vec<ChainUnit> = chains
                     .map(|c| self.start_chain(c, &dists, &ctx, job.seed, &mut init_slot, &mut counters_before))
                     .collect();
-                (boot, units, None, None, 0, 0.0)
+                (boot, units, None, None, 0)
             }
         };
 
-        let passes = match job.budget {
-            Budget::SamplesPerPixel(mpp) => {
-                let total = mpp * pixels;
-                let n = total.div_ceil(per_pass);
-                progress.set_total(n.saturating_sub(next_pass) * segment * units.len() as u64);
-                Passes::Count(n)
-            }
-            // The bootstrap and the chains' start are part of the user's budget.
-            Budget::Seconds(s) => Passes::Seconds((s - render_start.elapsed().as_secs_f64()).max(0.0)),
-        };
+        let passes = cs.passes(job.budget, pixels, per_pass, segment, units.len(), next_pass, progress);
         progress.message("mutating");
         let bootstrap = Bootstrap { sums: &boot.sums, paths: boot.paths };
         let preview = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
@@ -225,29 +194,24 @@ impl Mlt {
             let iterations = self.iteration_counts(at.slots.iter().map(|slot| &slot.state));
             self.normalised_image(at.film, &large_steps, &iterations, &bootstrap).0
         };
-        let complete_at = |p: u64| matches!(passes, Passes::Count(n) if p >= n);
         let checkpoint = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
-            let Some(sink) = session.checkpoint else { return };
-            let mut counters = counters_before.clone();
-            let mut merged = self.new_slot(0, 0);
-            merged.count_films = None;
-            for (i, slot) in at.slots.iter().enumerate() {
-                counters.merge(&slot.counters);
-                if i == 0 {
-                    merged.count_films = slot.state.count_films.clone();
-                    merged.stats = slot.state.stats.clone();
-                } else {
-                    merge_slot(&mut merged, &slot.state);
+            cs.checkpoint(progress, || {
+                let counters = boundary_counters(&counters_before, at.slots);
+                let mut merged = self.new_slot(0, 0);
+                merged.count_films = None;
+                for (i, slot) in at.slots.iter().enumerate() {
+                    if i == 0 {
+                        merged.count_films = slot.state.count_films.clone();
+                        merged.stats = slot.state.stats.clone();
+                    } else {
+                        merge_slot(&mut merged, &slot.state);
+                    }
                 }
-            }
-            let part = self.part(&boot, segment, &merged, at.units);
-            let wall = render_start.elapsed() + Duration::try_from_secs_f64(earlier).unwrap_or_default();
-            match part.and_then(|part| {
-                self.state(at.film.clone(), &counters, &part, at.passes_done, complete_at(at.passes_done), wall)
-            }) {
-                Ok(state) => sink(state),
-                Err(e) => progress.message(&format!("checkpoint not written: {e}")),
-            }
+                let boot = BootstrapPart { seconds: cs.saved_seconds(boot.seconds), ..boot.clone() };
+                let part = self.part(&boot, segment, &merged, at.units)?;
+                let done = at.passes_done;
+                cs.state(at.film.clone(), &counters, &part, done, cs.complete_at(done), cs.wall())
+            })
         };
         let start = RunStart { units, next_pass, film, saved_slot, passes: PassSet::ALL };
         let out = driver.run_from(
@@ -282,34 +246,19 @@ impl Mlt {
             },
             Some(&preview),
             session.control,
-            session.checkpoint.is_some().then_some(&checkpoint as &crate::integrator::driver::CheckpointHook<'_, _, _>),
+            session.checkpoint.is_some().then_some(&checkpoint as &CheckpointHook<'_, _, _>),
         );
 
-        let mut slots = out.slot_states.into_iter();
-        let Some(mut merged) = slots.next() else {
-            return Err(RenderError::Settings("no worker ran".into()));
-        };
-        for s in slots {
-            merge_slot(&mut merged, &s);
-        }
+        let merged = merge_slot_states(out.slot_states, merge_slot)?;
         let mut counters = out.counters;
         counters.merge(&counters_before);
-        let wall = render_start.elapsed() + Duration::try_from_secs_f64(earlier).unwrap_or_default();
-        let boot_for_state =
-            BootstrapPart { seconds: if shard.is_some() { 0.0 } else { boot.seconds }, ..boot.clone() };
+        let boot_for_state = BootstrapPart { seconds: cs.saved_seconds(boot.seconds), ..boot.clone() };
         let part = save.then(|| self.part(&boot_for_state, segment, &merged, &out.units)).transpose()?;
-        let tally = Tally { passes: out.passes, segment, counters, wall };
+        let tally = Tally { passes: out.passes, segment, counters, wall: cs.wall() };
         let output = self.output(&out.film, &out.units, merged, &boot, tally);
-        let (film, state) = match part {
-            Some(part) => {
-                let wall = if shard.is_some() { Duration::ZERO } else { output.wall_time };
-                let mut state =
-                    self.state(out.film, &output.counters, &part, out.passes, complete_at(out.passes), wall)?;
-                state.interrupted = out.stopped;
-                (Accumulator::new(0, 0), Some(state))
-            }
-            None => (out.film, None),
-        };
+        let complete = cs.complete_at(out.passes);
+        let (film, state) =
+            cs.finish(out.film, &output.counters, part, out.passes, complete, out.stopped, output.wall_time)?;
         Ok((MltRun { output, film }, state))
     }
 
@@ -428,31 +377,8 @@ impl Mlt {
         for (depth, (sum, _)) in stats.per_depth.iter_mut().zip(self.large_step_totals(units)) {
             depth.large_step_target_sum = sum;
         }
-        let units = units.iter().map(|u| Ok((u.index, u.save()?))).collect::<Result<Vec<_>, StateError>>()?;
+        let units = save_units(units, |u| u.index)?;
         Ok(MltPart { bootstrap: boot.clone(), segment, stats, count_films, units })
-    }
-
-    fn state(
-        &self,
-        film: Accumulator,
-        counters: &Counters,
-        part: &MltPart,
-        passes_done: u64,
-        complete: bool,
-        wall: Duration,
-    ) -> Result<RenderState, StateError> {
-        Ok(RenderState {
-            passes_done,
-            unit_count: self.settings.chains,
-            film_width: film.width as u32,
-            film_height: film.height as u32,
-            film: film.into_sums(),
-            counters: counters.clone(),
-            part: encode(part)?,
-            complete,
-            interrupted: false,
-            wall_time_s: wall.as_secs_f64(),
-        })
     }
 
     /// The image and statistics of a film with its chains and merged slot: each depth normalised
