@@ -190,7 +190,7 @@ pub struct StrategyStats {
     /// Proposals accepted (the Metropolis coin), and the sum of their acceptance probabilities
     /// (what expected-value splatting weights the proposals by).
     pub accepted: u64,
-    pub acceptance_probability_sum: f64,
+    pub acceptance_probability_sum: ProbabilitySum,
     /// Per depth (scattering events) of the current path: the strategy's proposals and their
     /// acceptance; serialised as proposals and rate.
     #[serde(serialize_with = "per_depth_counts")]
@@ -199,6 +199,59 @@ pub struct StrategyStats {
     /// selections).
     pub acceptance: Option<f64>,
     pub mean_acceptance_probability: Option<f64>,
+}
+
+/// A sum of probabilities (values in [0, 1]) held exactly as an integer count of 2^-64, so that
+/// the slots' sums merge to the same bits however the chains were dealt to threads: the last bits
+/// of an f64 sum depend on the grouping, and a state's bytes must not depend on the threads
+/// (`crate::state`; pmlt's shards differed with 1 and 2 threads when this was an f64). Each value
+/// added is rounded to the nearest 2^-64 (an error of at most 2^-65 each, below f64's own spacing
+/// at every probability above 2^-12); u128 holds 2^64 values of 1. The JSON report shows the f64
+/// it stands for, a state file (bincode) the integer.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ProbabilitySum(u128);
+
+impl ProbabilitySum {
+    const ONE: f64 = 18_446_744_073_709_551_616.0; // 2^64
+
+    pub fn value(&self) -> f64 {
+        self.0 as f64 / Self::ONE
+    }
+}
+
+impl std::ops::AddAssign<f64> for ProbabilitySum {
+    fn add_assign(&mut self, p: f64) {
+        // p · 2^64 is exact (a power-of-two scale); `as` saturates, and sends a NaN to 0.
+        self.0 += (p.clamp(0.0, 1.0) * Self::ONE).round() as u128;
+    }
+}
+
+impl std::ops::AddAssign for ProbabilitySum {
+    fn add_assign(&mut self, o: ProbabilitySum) {
+        self.0 += o.0;
+    }
+}
+
+impl Serialize for ProbabilitySum {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        if s.is_human_readable() {
+            s.serialize_f64(self.value())
+        } else {
+            s.serialize_u128(self.0)
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for ProbabilitySum {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        if d.is_human_readable() {
+            let mut sum = ProbabilitySum::default();
+            sum += f64::deserialize(d)?;
+            Ok(sum)
+        } else {
+            u128::deserialize(d).map(ProbabilitySum)
+        }
+    }
 }
 
 impl StrategyStats {
@@ -325,7 +378,7 @@ impl MltStats {
             all.merge(&strategy.as_moves());
             strategy.acceptance = ratio(strategy.accepted, strategy.selected);
             strategy.mean_acceptance_probability =
-                (strategy.selected > 0).then(|| strategy.acceptance_probability_sum / strategy.selected as f64);
+                (strategy.selected > 0).then(|| strategy.acceptance_probability_sum.value() / strategy.selected as f64);
         }
         self.mutations = all.proposals;
         self.mutations_per_pixel = all.proposals as f64 / pixels.max(1) as f64;
@@ -411,6 +464,30 @@ mod tests {
     use super::*;
 
     /// The JSON keys and shape the tests and scripts read, and a merge that adds counts.
+    /// Probability sums merge to the same bits in any grouping (an f64 sum of these values does
+    /// not: ((0.1 + 0.2) + 0.3) ≠ (0.1 + (0.2 + 0.3)) in f64), and read back from a state's bytes.
+    #[test]
+    fn probability_sums_do_not_depend_on_the_grouping() {
+        let values = [0.1, 0.2, 0.3, 0.7, 1.0, 1e-9, 0.999_999];
+        let sum_of = |vs: &[f64]| {
+            let mut s = ProbabilitySum::default();
+            for &v in vs {
+                s += v;
+            }
+            s
+        };
+        let all = sum_of(&values);
+        for split in 1..values.len() {
+            let mut parts = sum_of(&values[..split]);
+            parts += sum_of(&values[split..]);
+            assert_eq!(parts, all, "split at {split}");
+        }
+        assert!((all.value() - values.iter().sum::<f64>()).abs() < 1e-14);
+        assert_ne!((0.1f64 + 0.2) + 0.3, 0.1 + (0.2 + 0.3), "the f64 counterexample");
+        let bytes = crate::state::encode(&all).expect("encode");
+        assert_eq!(crate::state::decode::<ProbabilitySum>(&bytes).expect("decode"), all);
+    }
+
     #[test]
     fn merged_statistics_serialise_with_the_keys_the_readers_use() {
         let mut a = MltStats::new(&[1, 3], true, false, true);
