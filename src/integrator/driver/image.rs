@@ -368,8 +368,10 @@ impl<'a> ImageRender<'a> {
             |item, tile, slot| {
                 let spp = plan.spp_in_pass(item.pass);
                 // The index of the pass's first sample in every pixel's sequence: a function of the
-                // schedule only, so shards and resumed runs read the points the whole render would.
-                let first = plan.spp_after(item.pass);
+                // pass alone (its work unit's key), so shards and resumed runs read the points the
+                // whole render would, and passes never share points. Every pass but a sample
+                // budget's last is full, so these are the indices 0, 1, … of the render's samples.
+                let first = item.pass * plan.spp_per_pass;
                 let mut rng = item.rng();
                 for (x, y) in tile.pixels() {
                     for s in 0..spp {
