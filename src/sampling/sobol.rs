@@ -22,9 +22,9 @@
 //! keyed also by j, a further independent scramble — still unbiased, merely no longer stratified
 //! against the first 2^16.
 //!
-//! Everything is a function of (seed, pixel, sample index, stream, position): a pass's sample
-//! indices come from the schedule (`ImagePlan`), never from threads or timing, so renders stay
-//! bit-for-bit deterministic and pass shards merge to the unsharded render.
+//! Everything is a function of (seed, pixel, sample index, stream, position): pass p's sample
+//! indices are p · (samples per pass) onwards (`ImageRender::run`), never from threads or
+//! timing, so renders stay bit-for-bit deterministic and pass shards merge to the unsharded render.
 
 use serde::{Deserialize, Serialize};
 
@@ -59,7 +59,9 @@ impl<'a> PixelSampler<'a> {
     pub fn new(kind: SamplerKind, rng: &'a mut Rng, seed: u64, x: u32, y: u32, index: u64) -> PixelSampler<'a> {
         let key = match kind {
             SamplerKind::Independent => 0,
-            SamplerKind::Sobol => splitmix64(splitmix64(seed ^ 0x5851_F42D_4C95_7F2D) ^ (((y as u64) << 32) | x as u64)),
+            SamplerKind::Sobol => {
+                splitmix64(splitmix64(seed ^ 0x5851_F42D_4C95_7F2D) ^ (((y as u64) << 32) | x as u64))
+            }
         };
         PixelSampler { kind, rng, key, index }
     }
