@@ -20,7 +20,7 @@ use super::driver::{ImagePart, ImageRender, ImageRun};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::geometry::Ray;
 use crate::material::TransportMode;
-use crate::sampling::Rng;
+use crate::sampling::{SamplerKind, UniformSource};
 use crate::scene::Scene;
 use crate::spectrum::{is_finite, Rgb};
 use crate::state::{RenderState, Session};
@@ -53,11 +53,14 @@ pub struct PtSettings {
     /// How light samples and BSDF samples are weighted: "power", "balance", "bsdf_only",
     /// "light_only".
     pub mis: Mis,
+    /// The numbers samples read: "sobol" (Owen-scrambled Sobol per pixel) or "independent"
+    /// (`sampling::SamplerKind`).
+    pub sampler: SamplerKind,
 }
 
 impl Default for PtSettings {
     fn default() -> Self {
-        PtSettings { max_depth: 16, rr_depth: 5, mis: Mis::Power }
+        PtSettings { max_depth: 16, rr_depth: 5, mis: Mis::Power, sampler: SamplerKind::default() }
     }
 }
 
@@ -129,8 +132,9 @@ impl PathTracer {
     }
 
     /// Radiance arriving along `ray` (one camera path). Non-finite contributions are dropped and
-    /// counted; rays and shadow rays are counted.
-    pub fn li(&self, scene: &Scene, mut ray: Ray, rng: &mut Rng, counters: &mut Counters) -> Rgb {
+    /// counted; rays and shadow rays are counted. Every bounce reads two blocks of four numbers
+    /// from `rng`: the light sample's, then the BSDF sample's three and Russian roulette's one.
+    pub fn li(&self, scene: &Scene, mut ray: Ray, rng: &mut impl UniformSource, counters: &mut Counters) -> Rgb {
         let mut l = Rgb::ZERO;
         let mut beta = Rgb::ONE;
         // Product of η² over the refractions so far: beta · eta_scale is the throughput without the
@@ -196,7 +200,7 @@ impl PathTracer {
 
             // Next-event estimation (its uniforms are drawn even when unused, so that the stream
             // position depends only on the path's vertices).
-            let u_light = [rng.uniform(), rng.uniform(), rng.uniform(), rng.uniform()];
+            let u_light: [f32; 4] = rng.next_n();
             if use_nee && !material.is_specular() {
                 let (index, pmf, _) = scene.light_sampler.distribution.sample_discrete(u_light[0]);
                 let light = &scene.lights[index];
@@ -220,8 +224,8 @@ impl PathTracer {
             }
 
             // Continue the path by sampling the BSDF.
-            let u_bsdf = [rng.uniform(), rng.uniform(), rng.uniform()];
-            let Some(bs) = material.sample(wo, u_bsdf, TransportMode::Radiance) else { break };
+            let [u0, u1, u2, u_rr] = rng.next_n::<4>();
+            let Some(bs) = material.sample(wo, [u0, u1, u2], TransportMode::Radiance) else { break };
             // Also rejects a NaN pdf.
             if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO {
                 break;
@@ -237,7 +241,6 @@ impl PathTracer {
             prev_p = si.p;
             ray = si.spawn(frame.to_world(bs.wi));
 
-            let u_rr = rng.uniform();
             if depth >= self.settings.rr_depth {
                 match russian_roulette(beta, eta_scale, u_rr) {
                     Some(survivor) => beta = survivor,
@@ -330,14 +333,17 @@ impl PathTracer {
         session: Session,
         save: bool,
     ) -> Result<ImageRun, RenderError> {
-        let render =
-            ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?.with_session(session, save)?;
+        let render = ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?
+            .with_session(session, save)?
+            .with_sampler(self.settings.sampler);
         let (run, _) = render.run(
             |_| (),
-            |x, y, rng, slot| {
-                let raster = Vec2::new(x as f32 + rng.uniform(), y as f32 + rng.uniform());
+            |x, y, sampler, slot| {
+                let mut rng = sampler.stream(0);
+                let u = rng.next_2d();
+                let raster = Vec2::new(x as f32 + u[0], y as f32 + u[1]);
                 let ray = scene.camera.ray_through(raster);
-                let l = self.li(scene, ray, rng, &mut slot.counters);
+                let l = self.li(scene, ray, &mut rng, &mut slot.counters);
                 // `li` adds only finite contributions, but their sum can still overflow.
                 if is_finite(l) {
                     slot.film.add(x as usize, y as usize, l);
@@ -358,7 +364,10 @@ mod tests {
     #[test]
     fn settings_defaults_and_unknown_keys() {
         let pt = PathTracer::from_params(&toml::Table::new()).expect("defaults");
-        assert_eq!(pt.settings, PtSettings { max_depth: 16, rr_depth: 5, mis: Mis::Power });
+        assert_eq!(
+            pt.settings,
+            PtSettings { max_depth: 16, rr_depth: 5, mis: Mis::Power, sampler: SamplerKind::Sobol }
+        );
         let t: toml::Table = toml::from_str("max_depth = 3\nmis = \"balance\"").expect("toml");
         let pt = PathTracer::from_params(&t).expect("valid");
         assert_eq!((pt.settings.max_depth, pt.settings.mis), (3, Mis::Balance));

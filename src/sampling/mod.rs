@@ -8,10 +8,12 @@
 pub mod chi2;
 mod distribution;
 mod rng;
+mod sobol;
 mod source;
 pub mod warp;
 
 pub use distribution::{Distribution1D, Distribution2D};
 pub use rng::Rng;
+pub use sobol::{PixelSampler, SampleStream, SamplerKind, SobolStream};
 pub use source::{ReplaySampler, UniformSource};
 pub use warp::*;

@@ -36,7 +36,7 @@ pub use vertex::{Vertex, VertexKind};
 use super::driver::{ImagePart, ImageRender, ImageRun};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::film::{Accumulator, SplatBuffer};
-use crate::sampling::{Rng, UniformSource};
+use crate::sampling::{PixelSampler, SamplerKind, UniformSource};
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
 use crate::state::{RenderState, Session};
@@ -75,6 +75,9 @@ pub struct BdptSettings {
     /// `deeper` layer, so the weighted layers always add up to the image (bounds the memory:
     /// two f64 RGB films per technique and worker).
     pub technique_max_depth: u32,
+    /// The numbers samples read: "sobol" or "independent" (`sampling::SamplerKind`); the camera,
+    /// light and connection subpaths read separate streams.
+    pub sampler: SamplerKind,
 }
 
 impl Default for BdptSettings {
@@ -85,6 +88,7 @@ impl Default for BdptSettings {
             rr_depth: 5,
             technique_images: false,
             technique_max_depth: 5,
+            sampler: SamplerKind::default(),
         }
     }
 }
@@ -163,21 +167,28 @@ impl Bdpt {
         BdptContext::new(scene, self.settings.rr_depth as usize, self.settings.mis)
     }
 
-    /// One BDPT sample for pixel `pixel`: traces both subpaths from `rng` and adds every
+    /// One BDPT sample for pixel `pixel`: traces both subpaths from `sampler` (camera stream 0,
+    /// light stream 1, connections stream 2) and adds every
     /// technique's weighted contribution to `film` (t ≥ 2 at the pixel, t = 1 where it lands).
     fn sample_pixel(
         &self,
         ctx: &BdptContext,
         pixel: UVec2,
-        rng: &mut Rng,
+        sampler: &mut PixelSampler<'_>,
         film: &mut SplatBuffer,
         counters: &mut Counters,
         slot: &mut BdptSlot,
     ) {
         let max_depth = self.settings.max_depth as usize;
-        let raster =
-            generate_camera_subpath(ctx, FilmRegion::Pixel(pixel), rng, max_depth + 2, &mut slot.camera, counters);
-        generate_light_subpath(ctx, rng, max_depth + 1, &mut slot.light, counters);
+        let raster = generate_camera_subpath(
+            ctx,
+            FilmRegion::Pixel(pixel),
+            &mut sampler.stream(0),
+            max_depth + 2,
+            &mut slot.camera,
+            counters,
+        );
+        generate_light_subpath(ctx, &mut sampler.stream(1), max_depth + 1, &mut slot.light, counters);
         let techniques = &mut slot.techniques;
         connect_all(
             ctx,
@@ -185,7 +196,7 @@ impl Bdpt {
             &slot.camera,
             raster,
             max_depth,
-            rng,
+            &mut sampler.stream(2),
             &mut slot.scratch,
             counters,
             |c, counters| {
@@ -301,7 +312,9 @@ impl Bdpt {
         save: bool,
     ) -> Result<ImageRun, RenderError> {
         let (width, height) = (scene.camera.width, scene.camera.height);
-        let render = ImageRender::new(job, width, height, progress)?.with_session(session, save)?;
+        let render = ImageRender::new(job, width, height, progress)?
+            .with_session(session, save)?
+            .with_sampler(self.settings.sampler);
         let ctx = self.context(scene);
         let technique_depth = (self.settings.technique_max_depth.min(self.settings.max_depth)) as usize;
         let (mut run, slot_states) = render.run(

@@ -9,7 +9,7 @@ use super::MIN_SAMPLES_PER_PASS;
 use super::{CheckpointHook, Clock, Driver, PassBoundary, PassSet, Passes, RunStart, Slot, WallClock};
 use crate::film::Accumulator;
 use crate::integrator::{Budget, Progress, RenderError, RenderJob, RenderOutput};
-use crate::sampling::Rng;
+use crate::sampling::{PixelSampler, SamplerKind};
 use crate::state::{RenderState, Session, StateError};
 use crate::stats::Counters;
 
@@ -197,6 +197,8 @@ pub struct ImageRender<'a> {
     earlier_seconds: f64,
     /// Whether `run` returns the state reached (`ImageRun::state`).
     save: bool,
+    /// The numbers each sample reads.
+    sampler: SamplerKind,
 }
 
 /// What [`ImageRender::run`] produced.
@@ -251,6 +253,7 @@ impl<'a> ImageRender<'a> {
             passes: PassSet::ALL,
             earlier_seconds: 0.0,
             save: false,
+            sampler: SamplerKind::Independent,
         })
     }
 
@@ -292,6 +295,12 @@ impl<'a> ImageRender<'a> {
         Ok(self)
     }
 
+    /// Samples read `kind`'s numbers (`SamplerKind::Independent` unless set).
+    pub fn with_sampler(mut self, kind: SamplerKind) -> Self {
+        self.sampler = kind;
+        self
+    }
+
     pub fn plan(&self) -> &ImagePlan {
         &self.plan
     }
@@ -319,18 +328,20 @@ impl<'a> ImageRender<'a> {
         }
     }
 
-    /// Renders: for every pass and tile, `sample(x, y, rng, slot)` once per sample of each of the
-    /// tile's pixels (pixels in row-major order, a pixel's samples in a row), all drawing from the
-    /// item's stream `rng` and adding to `slot.film` — at (x, y), or anywhere (light tracing uses
-    /// (x, y) only to count its paths). `init_slot` creates the per-slot state, which is returned
+    /// Renders: for every pass and tile, `sample(x, y, sampler, slot)` once per sample of each of
+    /// the tile's pixels (pixels in row-major order, a pixel's samples in a row), drawing from
+    /// `sampler` (the item's stream, or the pixel's Sobol points at the sample's index in the
+    /// schedule: `sampling::PixelSampler`) and adding to `slot.film` — at (x, y), or anywhere
+    /// (light tracing uses (x, y) only to count its paths). `init_slot` creates the per-slot state, which is returned
     /// in slot order.
     pub fn run<S, K>(&self, init_slot: impl Fn(usize) -> S, sample: K) -> (ImageRun, Vec<S>)
     where
         S: Send + Sync,
-        K: Fn(u32, u32, &mut Rng, &mut Slot<S>) + Sync,
+        K: Fn(u32, u32, &mut PixelSampler<'_>, &mut Slot<S>) + Sync,
     {
         let plan = &self.plan;
         let set = self.passes;
+        let kind = self.sampler;
         let preview = |at: &PassBoundary<'_, Tile, S>| {
             let spp = plan.spp_in_set(set, at.passes_done);
             at.film.to_image(if spp > 0 { 1.0 / spp as f64 } else { 0.0 })
@@ -363,10 +374,16 @@ impl<'a> ImageRender<'a> {
             init_slot,
             |item, tile, slot| {
                 let spp = plan.spp_in_pass(item.pass);
+                // The index of the pass's first sample in every pixel's sequence: a function of the
+                // pass alone (its work unit's key), so shards and resumed runs read the points the
+                // whole render would, and passes never share points. Every pass but a sample
+                // budget's last is full, so these are the indices 0, 1, … of the render's samples.
+                let first = item.pass * plan.spp_per_pass;
                 let mut rng = item.rng();
                 for (x, y) in tile.pixels() {
-                    for _ in 0..spp {
-                        sample(x, y, &mut rng, slot);
+                    for s in 0..spp {
+                        let mut sampler = PixelSampler::new(kind, &mut rng, item.seed, x, y, first + s);
+                        sample(x, y, &mut sampler, slot);
                     }
                 }
                 let samples = spp * tile.pixel_count();

@@ -23,10 +23,24 @@ pub struct BootstrapRun {
     pub targets: Vec<Vec<f32>>,
     /// Per depth slot, the sum of the targets (f64, summed in sample order).
     pub sums: Vec<f64>,
+    /// Per depth slot, the sum of the squared targets (the same order): b_d's standard error.
+    pub sums_sq: Vec<f64>,
     /// Samples per depth slot actually taken (≤ `requested` under a time budget).
     pub paths: u64,
     pub counters: Counters,
     pub elapsed: Duration,
+}
+
+/// The relative standard error of a mean of `n` samples with sum `sum` and sum of squares
+/// `sum_sq`: √(s²/n) / mean with the unbiased sample variance s²; `None` for a zero mean or n < 2.
+pub fn relative_standard_error(sum: f64, sum_sq: f64, n: u64) -> Option<f64> {
+    if n < 2 || !(sum > 0.0) {
+        return None;
+    }
+    let n = n as f64;
+    let mean = sum / n;
+    let variance = ((sum_sq - n * mean * mean) / (n - 1.0)).max(0.0);
+    Some((variance / n).sqrt() / mean)
 }
 
 impl BootstrapRun {
@@ -90,5 +104,20 @@ pub fn run_bootstrap<S: Send + Sync>(
         targets[d].extend(t);
     }
     let sums = targets.iter().map(|t| t.iter().map(|&x| x as f64).sum()).collect();
-    BootstrapRun { targets, sums, paths, counters, elapsed }
+    let sums_sq = targets.iter().map(|t| t.iter().map(|&x| x as f64 * x as f64).sum()).collect();
+    BootstrapRun { targets, sums, sums_sq, paths, counters, elapsed }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::relative_standard_error;
+
+    /// Samples 1, 2, 3: mean 2, s² = 1, SE = √(1/3), relative SE = 0.2887; no SE without light.
+    #[test]
+    fn relative_standard_error_of_a_small_sample() {
+        let rse = relative_standard_error(6.0, 14.0, 3).expect("defined");
+        assert!((rse - (1.0f64 / 3.0).sqrt() / 2.0).abs() < 1e-12, "{rse}");
+        assert_eq!(relative_standard_error(0.0, 0.0, 10), None);
+        assert_eq!(relative_standard_error(1.0, 1.0, 1), None);
+    }
 }

@@ -94,6 +94,9 @@ pub struct DepthStats {
     /// Set by `finish`: b_d from the bootstrap alone, and the b_d the image was normalised with.
     pub b_bootstrap: f64,
     pub b: f64,
+    /// The relative standard error of `b_bootstrap` (its uniform samples' spread; null when the
+    /// bootstrap found no light at the depth). PSSMLT's one chain and path-space MLT leave it null.
+    pub b_bootstrap_relative_se: Option<f64>,
     /// Iterations of the depth's chains (what its film is divided by).
     pub iterations: u64,
     /// Large steps of sub-chains still searching for their first non-zero state (a depth the

@@ -15,7 +15,7 @@ use crate::integrator::driver::{
     boundary_counters, load_units, merge_chain_parts, merge_slot_states, save_units, state_film, ChainPart,
     ChainSession, CheckpointHook, Driver, PassBoundary, PassSet, RunStart, Slot, Tally,
 };
-use crate::integrator::pss::bootstrap::run_bootstrap;
+use crate::integrator::pss::bootstrap::{relative_standard_error, run_bootstrap};
 use crate::integrator::pss::sampler::PssSampler;
 use crate::integrator::pss::stats::{MltStats, MoveStats};
 use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
@@ -30,6 +30,8 @@ use crate::stats::{AcceptanceCount, Counters};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 struct BootstrapPart {
     sums: Vec<f64>,
+    /// Per depth the sum of the squared targets (b_d's standard error in the statistics).
+    sums_sq: Vec<f64>,
     paths: u64,
     /// Wall time (0 in shards, whose bytes depend on their units only).
     seconds: f64,
@@ -301,6 +303,7 @@ impl Mlt {
         let seconds = boot.elapsed.as_secs_f64();
         let targets = boot.targets;
         let sums = boot.sums;
+        let sums_sq = boot.sums_sq;
         let b_total: f64 = sums.iter().map(|s| s / n_boot as f64).sum();
         let mut warnings: Vec<String> = Vec::new();
         if !(b_total > 0.0) {
@@ -309,7 +312,7 @@ impl Mlt {
                  emitters are visible from the camera's surroundings, or raise `bootstrap`.",
                 n_boot
             ));
-            return Ok((BootstrapPart { sums, paths: n_boot, seconds, warnings }, counters, None));
+            return Ok((BootstrapPart { sums, sums_sq, paths: n_boot, seconds, warnings }, counters, None));
         }
         // Without progressive b a depth's b_d stays the bootstrap's, so a depth it missed cannot
         // be recovered and is not chosen (`depth_choice`); a warning says so.
@@ -324,7 +327,7 @@ impl Mlt {
             }
         }
         let dists = targets.iter().zip(&sums).map(|(t, &s)| (s > 0.0).then(|| Distribution1D::new(t))).collect();
-        Ok((BootstrapPart { sums, paths: n_boot, seconds, warnings }, counters, Some(dists)))
+        Ok((BootstrapPart { sums, sums_sq, paths: n_boot, seconds, warnings }, counters, Some(dists)))
     }
 
     /// Chain `c`: each sub-chain starts from a bootstrap sample chosen ∝ its target (start-up bias
@@ -417,6 +420,9 @@ impl Mlt {
         stats.bootstrap_seconds = boot.seconds;
         stats.warnings = boot.warnings.clone();
         stats.finish(pixels, &b_boot, &b_final);
+        for (depth, (&sum, &sum_sq)) in stats.per_depth.iter_mut().zip(boot.sums.iter().zip(&boot.sums_sq)) {
+            depth.b_bootstrap_relative_se = relative_standard_error(sum, sum_sq, boot.paths);
+        }
         let mut counters = tally.counters;
         let strategy = |m: &MoveStats| AcceptanceCount { proposed: m.proposals, accepted: m.accepted as f64 };
         counters.strategies.insert("large_step".to_string(), strategy(&stats.moves.large));

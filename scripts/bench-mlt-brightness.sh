@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# MMLT and RJMLT brightness stability on the shipped Cornell box (issue 20): SEEDS renders at the
+# issue's budget (256×256, max_depth 16, 64 mutations per pixel, 2 threads), and per method the
+# image mean's relative standard deviation over the seeds (target ≤ 0.3%: frames of an animation
+# must not flicker), the bootstrap's wall time, mutations per second, and each depth's b_d with
+# its relative standard error (integrator_stats.per_depth[].b_bootstrap_relative_se), as Markdown.
+#
+# Usage: scripts/bench-mlt-brightness.sh [SEEDS] [METHODS]     (defaults 20, "mmlt rjmlt")
+# Environment: PLEXUS (binary), SPP [64], THREADS [2], OUTDIR [/tmp/bench-mlt-brightness].
+set -euo pipefail
+seeds=${1:-20}
+methods=${2:-mmlt rjmlt}
+spp=${SPP:-64}
+threads=${THREADS:-2}
+outdir=${OUTDIR:-/tmp/bench-mlt-brightness}
+source "$(dirname "$0")/plexus-binary.sh"
+plexus_binary bench-mlt-brightness scenes/cornell-box.toml
+mkdir -p "$outdir"
+for method in $methods; do
+    for seed in $(seq 1 "$seeds"); do
+        "$plexus" render scenes/cornell-box.toml --integrator "$method" --spp "$spp" --threads "$threads" \
+            --seed "$seed" --set max_depth=16 -o "$outdir/$method-$seed.exr" >/dev/null 2>&1
+    done
+done
+python3 - "$outdir" "$seeds" $methods <<'EOF'
+import json, math, statistics, sys
+outdir, seeds, methods = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
+print("| method | seeds | image mean (mean over seeds) | relative SD of the image mean | bootstrap s | mutations/s |")
+print("| --- | --- | --- | --- | --- | --- |")
+per_depth = {}
+for m in methods:
+    means, boot, rate = [], [], []
+    for s in range(1, seeds + 1):
+        j = json.load(open(f"{outdir}/{m}-{s}.json"))
+        means.append(sum(j["image_mean"]) / 3)
+        st = j["integrator_stats"]
+        boot.append(st["bootstrap_seconds"])
+        rate.append(st["mutations"] / j["wall_time_s"])
+        if s == 1:
+            per_depth[m] = st["per_depth"]
+    mu = statistics.mean(means)
+    print(f"| {m} | {seeds} | {mu:.5g} | {100 * statistics.stdev(means) / mu:.3f}% | "
+          f"{statistics.median(boot):.2f} | {statistics.median(rate):.3g} |")
+for m, depths in per_depth.items():
+    total = sum(d["b_bootstrap"] for d in depths) or 1.0
+    print(f"\n{m}, seed 1: per depth b_d (bootstrap), its share of Σb, its relative standard error\n")
+    print("| depth | b_d | share | relative SE |")
+    print("| --- | --- | --- | --- |")
+    for d in depths:
+        rse = d.get("b_bootstrap_relative_se")
+        print(f"| {d['depth']} | {d['b_bootstrap']:.4g} | {100 * d['b_bootstrap'] / total:.1f}% | "
+              f"{'—' if rse is None else f'{100 * rse:.2f}%'} |")
+EOF
