@@ -145,7 +145,7 @@ fn the_estimate_counts_the_scene_meshes_and_accelerator() {
         assert!(part("meshes") > 65536 * 12, "{accel}: {m}");
         assert!(part("accel") > 0, "{accel}: {m}");
         assert_eq!(part("textures"), 0, "{accel}: {m}");
-        let scene = part("meshes") + part("accel") + part("lights") + part("textures");
+        let scene = part("meshes") + part("accel") + part("accel_build") + part("lights") + part("textures");
         let render = ["film", "pass_buffers", "chains"].iter().map(|k| m[k].as_u64().expect("part")).sum::<u64>();
         assert_eq!(m["total"].as_u64(), Some(scene + render), "{accel}: {m}");
     }

@@ -1,5 +1,7 @@
-//! The in-house BVH: binned-SAH build (see `build`), 32-byte nodes flattened in depth-first order,
-//! ordered stack traversal, and the watertight ray–triangle test of Woop et al. 2013 (see
+//! The in-house BVH: a 4-wide hierarchy built directly by binned SAH (see `build`), whose nodes
+//! hold their four children's boxes in SIMD-friendly rows so that one node visit tests all four
+//! (`triangle::slab4`), an ordered stack traversal (nearest child first, entries farther than the current
+//! hit skipped when popped), and the watertight ray–triangle test of Woop et al. 2013 (see
 //! `triangle`). Answers the same queries as Embree behind [`Accel`], with the same hit convention.
 
 mod build;
@@ -11,7 +13,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 pub use build::BuildParams;
-use build::{BuildPrim, Node, MAX_DEPTH};
+use build::{BuildPrim, Node, EMPTY, MAX_DEPTH};
 use triangle::intersect_triangle_k;
 pub use triangle::{intersect_triangle, RayPre};
 
@@ -23,9 +25,8 @@ use crate::geometry::{Hit, Ray, TriangleMesh};
 /// Leaves reference contiguous ranges of triangles stored in leaf order. The vertices of each
 /// triangle are copied there (36 bytes per triangle plus 8 for its ids) rather than read through
 /// the mesh's index and position arrays, which saves two dependent loads (index, then three
-/// positions) per triangle test at the cost of 43 MB on the 1.19M-triangle benchmark scene. An A/B
-/// measurement against per-leaf (geom_id, prim_id) references has not been made yet (see
-/// docs/bench.md); `tree_invariants_hold` checks the copies equal the meshes' triangles.
+/// positions) per triangle test; `tree_invariants_hold` checks the copies equal the meshes'
+/// triangles.
 pub struct Bvh {
     meshes: Vec<Arc<TriangleMesh>>,
     nodes: Vec<Node>,
@@ -33,10 +34,16 @@ pub struct Bvh {
     triangles: Vec<[Vec3; 3]>,
     /// `(geom_id, prim_id)` of each triangle, in the same order.
     ids: Vec<[u32; 2]>,
+    /// The most bytes the build held at once (see `build_with`).
+    build_peak: usize,
 }
 
-/// Enough for any tree the builder makes (its depth is at most `MAX_DEPTH`).
-const STACK: usize = MAX_DEPTH + 1;
+/// Enough for any traversal: a node visit pushes at most three entries and descends one level,
+/// and the tree is at most `MAX_DEPTH` levels deep.
+const STACK: usize = 3 * MAX_DEPTH + 4;
+
+/// A traversal stack entry: a node slot's `child | count << 32` (count 0 for an interior node).
+type Entry = u64;
 
 impl Bvh {
     /// Builds over `meshes` (kept, not copied) with the default parameters; `Hit::geom_id` is the
@@ -47,25 +54,37 @@ impl Bvh {
 
     /// As [`Bvh::build`], with explicit build parameters. Runs on the current rayon pool.
     pub fn build_with(meshes: &[Arc<TriangleMesh>], params: &BuildParams) -> Bvh {
-        let mut prims: Vec<BuildPrim> = meshes
-            .par_iter()
-            .enumerate()
-            .flat_map_iter(|(geom, mesh)| {
-                (0..mesh.triangle_count() as u32).filter_map(move |prim| {
-                    let [a, b, c] = mesh.triangle(prim);
-                    (!crate::geometry::triangle_is_degenerate(a, b, c)).then(|| BuildPrim {
-                        min: a.min(b).min(c),
-                        geom: geom as u32,
-                        max: a.max(b).max(c),
-                        prim,
-                    })
-                })
-            })
-            .collect();
+        // Allocated once at its final size (an unindexed parallel collect would hold the
+        // primitives twice while it concatenates); zero-area triangles are then dropped in place.
+        let total: usize = meshes.iter().map(|m| m.triangle_count()).sum();
+        let mut prims: Vec<BuildPrim> = Vec::with_capacity(total);
+        for (geom, mesh) in meshes.iter().enumerate() {
+            prims.par_extend((0..mesh.triangle_count() as u32).into_par_iter().map(|prim| {
+                let [a, b, c] = mesh.triangle(prim);
+                let (min, max) = if crate::geometry::triangle_is_degenerate(a, b, c) {
+                    (Vec3::NAN, Vec3::NAN)
+                } else {
+                    (a.min(b).min(c), a.max(b).max(c))
+                };
+                BuildPrim { min, geom: geom as u32, max, prim }
+            }));
+        }
+        prims.retain(|p| !p.min.x.is_nan());
         let nodes = build::build(&mut prims, params);
-        let triangles = prims.par_iter().map(|p| meshes[p.geom as usize].triangle(p.prim)).collect();
-        let ids = prims.iter().map(|p| [p.geom, p.prim]).collect();
-        Bvh { meshes: meshes.to_vec(), nodes, triangles, ids }
+        // The build's primitives (32 bytes each) are freed before the triangles (36) are copied,
+        // so that the two never coexist: on 10M triangles that is 320 MB less at the peak.
+        let ids: Vec<[u32; 2]> = prims.par_iter().map(|p| [p.geom, p.prim]).collect();
+        // The peak is while the primitives are alive: beside the nodes twice over (the subtrees
+        // and the final array, at the build's last append) or beside the nodes and the ids; or
+        // else the finished structure, whichever is most.
+        let node_bytes = nodes.capacity() * std::mem::size_of::<Node>();
+        let id_bytes = ids.capacity() * std::mem::size_of::<[u32; 2]>();
+        let held = prims.capacity() * std::mem::size_of::<BuildPrim>() + node_bytes + node_bytes.max(id_bytes);
+        drop(prims);
+        let triangles = ids.par_iter().map(|&[g, p]| meshes[g as usize].triangle(p)).collect();
+        let mut bvh = Bvh { meshes: meshes.to_vec(), nodes, triangles, ids, build_peak: 0 };
+        bvh.build_peak = held.max(bvh.memory_bytes());
+        bvh
     }
 
     /// The meshes, indexed by geometry id.
@@ -73,7 +92,7 @@ impl Bvh {
         &self.meshes
     }
 
-    /// Number of nodes (interior and leaves).
+    /// Number of (4-wide) nodes.
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
@@ -83,9 +102,10 @@ impl Bvh {
         self.triangles.len()
     }
 
-    /// Walks the nodes whose box the ray overlaps, nearer child first by the sign of the
-    /// direction on the split axis, and calls `leaf` on each leaf's triangle range with the
-    /// current `t_max`; `leaf` returns the new `t_max` and whether to stop.
+    /// Walks the slots whose box the ray overlaps, nearest first, and calls `leaf` on each leaf's
+    /// triangle range with the current `t_max`; `leaf` returns the new `t_max` and whether to
+    /// stop. Popped entries whose box starts beyond the (scaled) current `t_max` are skipped: they
+    /// cannot hold a nearer hit.
     #[inline(always)]
     fn traverse(&self, ray: &Ray, pre: &RayPre, mut leaf: impl FnMut(usize, usize, f32) -> (f32, bool)) {
         if self.nodes.is_empty() {
@@ -93,39 +113,61 @@ impl Bvh {
         }
         let t_min = ray.t_min;
         let mut t_max = ray.t_max;
-        let mut stack = [0u32; STACK];
+        let scale = triangle::far_scale();
+        let mut stack = [(0 as Entry, 0f32); STACK];
         let mut sp = 0;
-        let mut index = 0usize;
-        loop {
-            debug_assert!(index < self.nodes.len());
-            // SAFETY: `index` is 0 (the tree is not empty), `index + 1` of an interior node (its
-            // first child) or an interior node's `offset` (its second child): the builder writes
-            // only child indices below `nodes.len()` (checked by `tree_invariants_hold`).
-            let node = unsafe { self.nodes.get_unchecked(index) };
-            if triangle::slab(pre, node.min, node.max, t_min, t_max) {
-                if node.count == 0 {
-                    let (near, far) = if pre.neg[node.axis as usize] {
-                        (node.offset as usize, index + 1)
-                    } else {
-                        (index + 1, node.offset as usize)
-                    };
-                    stack[sp] = far as u32;
-                    sp += 1;
-                    index = near;
-                    continue;
+        let mut cur: Entry = 0;
+        'visit: loop {
+            let (child, count) = (cur as u32 as usize, (cur >> 32) as u32);
+            if count == 0 {
+                debug_assert!(child < self.nodes.len());
+                // SAFETY: `child` is 0 (the tree is not empty) or an interior slot's child index,
+                // which the builder writes only below `nodes.len()` (`tree_invariants_hold`).
+                let node = unsafe { self.nodes.get_unchecked(child) };
+                let (mut mask, near) = triangle::slab4(pre, &node.bounds, t_min, t_max);
+                let mut hits = [(0 as Entry, 0f32); 4];
+                let mut k = 0;
+                while mask != 0 {
+                    let slot = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    let c = node.count[slot];
+                    if c == EMPTY {
+                        continue;
+                    }
+                    // Insertion by distance, nearest first.
+                    let e = (node.child[slot] as Entry | (c as Entry) << 32, near[slot]);
+                    let mut j = k;
+                    while j > 0 && hits[j - 1].1 > e.1 {
+                        hits[j] = hits[j - 1];
+                        j -= 1;
+                    }
+                    hits[j] = e;
+                    k += 1;
                 }
-                let start = node.offset as usize;
-                let (t, stop) = leaf(start, start + node.count as usize, t_max);
+                if k > 0 {
+                    for &h in hits[1..k].iter().rev() {
+                        stack[sp] = h;
+                        sp += 1;
+                    }
+                    cur = hits[0].0;
+                    continue 'visit;
+                }
+            } else {
+                let (t, stop) = leaf(child, child + count as usize, t_max);
                 if stop {
                     return;
                 }
                 t_max = t;
             }
-            if sp == 0 {
-                return;
+            while sp > 0 {
+                sp -= 1;
+                let (e, near) = stack[sp];
+                if near <= t_max * scale {
+                    cur = e;
+                    continue 'visit;
+                }
             }
-            sp -= 1;
-            index = stack[sp] as usize;
+            return;
         }
     }
 }
@@ -213,6 +255,10 @@ impl Accel for Bvh {
             + self.triangles.capacity() * std::mem::size_of::<[Vec3; 3]>()
             + self.ids.capacity() * std::mem::size_of::<[u32; 2]>()
             + self.meshes.capacity() * std::mem::size_of::<Arc<TriangleMesh>>()
+    }
+
+    fn peak_memory_bytes(&self) -> usize {
+        self.build_peak
     }
 }
 
@@ -350,9 +396,9 @@ mod tests {
     }
 
     #[test]
-    fn node_is_32_bytes() {
-        assert_eq!(std::mem::size_of::<Node>(), 32);
-        assert_eq!(std::mem::align_of::<Node>(), 32);
+    fn node_is_two_cache_lines() {
+        assert_eq!(std::mem::size_of::<Node>(), 128);
+        assert_eq!(std::mem::align_of::<Node>(), 64);
     }
 
     #[test]
@@ -474,37 +520,49 @@ mod tests {
         let bvh = Bvh::build(std::slice::from_ref(&sphere));
         assert_eq!(bvh.triangle_count(), sphere.triangle_count());
         let mut seen = vec![false; bvh.triangle_count()];
+        let mut visited = vec![false; bvh.node_count()];
         let mut stack = vec![(0usize, 0usize)];
         let mut max_depth = 0;
+        let mut leaves = 0;
         while let Some((i, depth)) = stack.pop() {
+            assert!(!visited[i], "node {i} reached twice");
+            visited[i] = true;
             max_depth = max_depth.max(depth);
             let n = bvh.nodes[i];
-            if n.count == 0 {
-                for child in [i + 1, n.offset as usize] {
+            for k in 0..4 {
+                let (child, count) = (n.child[k] as usize, n.count[k]);
+                let b = n.slot_bounds(k);
+                if count == EMPTY {
+                    assert!(b.is_empty(), "an unused slot has an empty box");
+                } else if count == 0 {
                     let c = bvh.nodes[child];
-                    assert!(c.min.cmpge(n.min).all() && c.max.cmple(n.max).all(), "child box outside parent");
-                    assert!(child > i, "depth-first order");
-                    stack.push((child, depth + 1));
-                }
-            } else {
-                assert!(n.count as usize <= BuildParams::default().max_leaf);
-                let range = n.offset as usize..(n.offset + n.count as u32) as usize;
-                for (k, seen_k) in seen[range.clone()].iter_mut().enumerate().map(|(j, s)| (range.start + j, s)) {
-                    assert!(!*seen_k, "triangle {k} in two leaves");
-                    *seen_k = true;
-                    for v in bvh.triangles[k] {
-                        assert!(v.cmpge(n.min).all() && v.cmple(n.max).all());
+                    for j in (0..4).filter(|&j| c.count[j] != EMPTY) {
+                        let cb = c.slot_bounds(j);
+                        assert!(cb.min.cmpge(b.min).all() && cb.max.cmple(b.max).all(), "child box outside slot");
                     }
-                    let [g, p] = bvh.ids[k];
-                    assert_eq!(bvh.triangles[k], bvh.meshes[g as usize].triangle(p));
+                    stack.push((child, depth + 1));
+                } else {
+                    leaves += 1;
+                    assert!(count as usize <= BuildParams::default().max_leaf);
+                    for (k, seen_k) in seen[child..child + count as usize].iter_mut().enumerate() {
+                        let k = child + k;
+                        assert!(!*seen_k, "triangle {k} in two leaves");
+                        *seen_k = true;
+                        for v in bvh.triangles[k] {
+                            assert!(v.cmpge(b.min).all() && v.cmple(b.max).all());
+                        }
+                        let [g, p] = bvh.ids[k];
+                        assert_eq!(bvh.triangles[k], bvh.meshes[g as usize].triangle(p));
+                    }
                 }
             }
         }
         assert!(seen.iter().all(|&s| s), "every triangle in a leaf");
-        assert!(max_depth < 40, "depth {max_depth} (the bound is {MAX_DEPTH})");
-        // Every node is reachable: no holes left after compaction.
-        assert!(bvh.node_count() < 2 * bvh.triangle_count());
-        assert!(bvh.memory_bytes() >= bvh.node_count() * 32 + bvh.triangle_count() * 44);
+        assert!(visited.iter().all(|&v| v), "every node reachable");
+        assert!(max_depth < 20, "depth {max_depth} (the bound is {MAX_DEPTH})");
+        // Every node but the root has 2 to 4 children, so there are fewer nodes than leaves.
+        assert!(bvh.node_count() < leaves, "{} nodes for {leaves} leaves", bvh.node_count());
+        assert!(bvh.memory_bytes() >= bvh.node_count() * 128 + bvh.triangle_count() * 44);
     }
 
     #[test]

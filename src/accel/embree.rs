@@ -47,6 +47,8 @@ struct ErrorSink {
     first_error: Mutex<Option<String>>,
     /// Bytes Embree currently holds for this device, from the memory monitor callback.
     bytes: AtomicI64,
+    /// The most `bytes` has been: the build's peak, when its temporary arrays were alive.
+    peak: AtomicI64,
 }
 
 impl ErrorSink {
@@ -89,7 +91,8 @@ unsafe extern "C" fn memory_callback(user_ptr: *mut c_void, bytes: isize, _post:
     if !user_ptr.is_null() {
         // SAFETY: as in `error_callback`.
         let sink = unsafe { &*(user_ptr as *const ErrorSink) };
-        sink.bytes.fetch_add(bytes as i64, Ordering::Relaxed);
+        let now = sink.bytes.fetch_add(bytes as i64, Ordering::Relaxed) + bytes as i64;
+        sink.peak.fetch_max(now, Ordering::Relaxed);
     }
     true
 }
@@ -149,6 +152,11 @@ impl Device {
     /// Bytes Embree currently holds for this device (BVHs and internal buffers, not shared arrays).
     pub fn memory_bytes(&self) -> usize {
         self.sink.bytes.load(Ordering::Relaxed).max(0) as usize
+    }
+
+    /// The most bytes Embree has held at once for this device (the peak of a scene's build).
+    pub fn peak_memory_bytes(&self) -> usize {
+        self.sink.peak.load(Ordering::Relaxed).max(0) as usize
     }
 }
 
@@ -384,6 +392,11 @@ impl CommittedScene {
     pub fn memory_bytes(&self) -> usize {
         self.device.memory_bytes()
     }
+
+    /// The most bytes Embree held for this scene's device at once, its build included.
+    pub fn peak_memory_bytes(&self) -> usize {
+        self.device.peak_memory_bytes()
+    }
 }
 
 /// The Embree accelerator behind the [`Accel`] trait: one device and one committed scene.
@@ -427,6 +440,9 @@ impl Accel for EmbreeAccel {
     }
     fn memory_bytes(&self) -> usize {
         self.scene.memory_bytes()
+    }
+    fn peak_memory_bytes(&self) -> usize {
+        self.scene.peak_memory_bytes().max(self.memory_bytes())
     }
 }
 

@@ -24,6 +24,12 @@ pub trait Accel: Send + Sync {
     fn kind(&self) -> AccelKind;
     /// Bytes held by the acceleration structure itself (not the shared meshes), if known.
     fn memory_bytes(&self) -> usize;
+    /// The most bytes the structure held at once, its build's temporary arrays included (at least
+    /// `memory_bytes`). Building is the peak of loading a large scene: Embree's build holds its
+    /// primitive references beside the growing tree.
+    fn peak_memory_bytes(&self) -> usize {
+        self.memory_bytes()
+    }
 }
 
 /// The accelerators a user can choose between.

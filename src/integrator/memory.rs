@@ -42,6 +42,9 @@ const SUBCHAIN_BYTES_PER_VERTEX: u64 = 2 * 64;
 pub struct SceneMemory {
     pub meshes: u64,
     pub accel: u64,
+    /// Bytes the accelerator held only while it was built, on top of `accel` (`Accel::
+    /// peak_memory_bytes` minus `memory_bytes`): part of the process's peak, freed before rendering.
+    pub accel_build: u64,
     /// Light distributions and environment texels.
     pub lights: u64,
     /// Image textures' texels (each shared image once; `Scene::texture_memory_bytes`).
@@ -50,7 +53,11 @@ pub struct SceneMemory {
 
 impl SceneMemory {
     pub fn total(&self) -> u64 {
-        self.meshes.saturating_add(self.accel).saturating_add(self.lights).saturating_add(self.textures)
+        self.meshes
+            .saturating_add(self.accel)
+            .saturating_add(self.accel_build)
+            .saturating_add(self.lights)
+            .saturating_add(self.textures)
     }
 }
 
@@ -203,7 +210,7 @@ mod tests {
         assert!(check_fits(&m, 65536, 65536, Some(m.total())).is_ok());
         assert!(check_fits(&m, 65536, 65536, None).is_ok());
         // The scene's bytes count too.
-        let scene = SceneMemory { meshes: 1, accel: 2, lights: 3, textures: 4 };
+        let scene = SceneMemory { meshes: 1, accel: 2, accel_build: 0, lights: 3, textures: 4 };
         let with = m.with_scene(scene);
         assert_eq!(with.total(), m.total() + 10);
         assert!(check_fits(&with, 65536, 65536, Some(m.total())).is_err());

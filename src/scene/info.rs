@@ -73,6 +73,8 @@ pub struct SceneInfo {
 pub struct MemoryEstimate {
     pub meshes: usize,
     pub accel: usize,
+    /// Held by the accelerator only while it was built (part of loading's peak).
+    pub accel_build: usize,
     pub lights: usize,
     /// Texture images (each shared image once).
     pub textures: usize,
@@ -187,6 +189,7 @@ impl Scene {
         SceneMemory {
             meshes: meshes as u64,
             accel: self.accel.memory_bytes() as u64,
+            accel_build: self.accel.peak_memory_bytes().saturating_sub(self.accel.memory_bytes()) as u64,
             lights: lights as u64,
             textures: self.texture_memory_bytes() as u64,
         }
@@ -217,6 +220,7 @@ pub fn scene_info(scene: &Scene) -> SceneInfo {
         memory: MemoryEstimate {
             meshes: memory.meshes as usize,
             accel: memory.accel as usize,
+            accel_build: memory.accel_build as usize,
             lights: memory.lights as usize,
             textures: memory.textures as usize,
             total: memory.total() as usize,
@@ -245,11 +249,13 @@ impl fmt::Display for SceneInfo {
         writeln!(f, "resolution:  {}x{}", self.resolution[0], self.resolution[1])?;
         write!(
             f,
-            "memory:      {:.2} MiB for the scene (meshes {:.2}, {} accelerator {:.2}, lights {:.2}, textures {:.2})",
+            "memory:      {:.2} MiB for the scene (meshes {:.2}, {} accelerator {:.2} and {:.2} more while built, \
+             lights {:.2}, textures {:.2})",
             mib(self.memory.total),
             mib(self.memory.meshes),
             self.accel,
             mib(self.memory.accel),
+            mib(self.memory.accel_build),
             mib(self.memory.lights),
             mib(self.memory.textures)
         )

@@ -2,17 +2,15 @@
 //! (finite vertices, indices in range) is `TriangleMesh::new`'s job; this module reports only what
 //! the file formats themselves get wrong.
 
-use std::io::{BufRead, BufReader, Read, Seek, SeekFrom};
+use std::io::{BufReader, Seek, SeekFrom};
 use std::path::Path;
 
 use glam::{Vec2, Vec3};
 use ply_rs::parser::Parser;
 use ply_rs::ply::{DefaultElement, Property};
 
+use super::ply;
 use crate::input_file::open_regular;
-
-/// The longest PLY header read before giving up (real headers are a few hundred bytes).
-const MAX_PLY_HEADER: u64 = 1 << 20;
 
 /// A mesh as read or generated, before the transform and validation.
 #[derive(Clone, Debug, Default)]
@@ -68,10 +66,15 @@ pub fn load_obj(path: &Path) -> Result<RawMesh, String> {
 
 /// Reads a PLY file (ASCII or binary): `vertex` with x, y, z and optionally nx, ny, nz and u, v
 /// (or s, t); `face` with a `vertex_indices` (or `vertex_index`) list, polygons split into fans.
+/// The header's counts are checked against the file's size first (`ply::parse_header`); binary
+/// bodies are streamed into the arrays (`ply::read_binary`), ASCII ones parsed by ply-rs.
 pub fn load_ply(path: &Path) -> Result<RawMesh, String> {
     let (file, size) = open_regular(path)?;
     let mut reader = BufReader::new(file);
-    check_ply_counts(&mut reader, size)?;
+    let header = ply::parse_header(&mut reader, size)?;
+    if header.format != ply::Format::Ascii {
+        return ply::read_binary(&header, reader);
+    }
     reader.seek(SeekFrom::Start(0)).map_err(|e| e.to_string())?;
     let parser = Parser::<DefaultElement>::new();
     let ply = parser.read_ply(&mut reader).map_err(|e| format!("invalid PLY: {}", ply_reason(&e.to_string())))?;
@@ -124,79 +127,6 @@ pub fn load_ply(path: &Path) -> Result<RawMesh, String> {
         out.uvs = Some(uvs);
     }
     Ok(out)
-}
-
-/// Checks a PLY header's element counts against the file's `size` before ply-rs allocates by
-/// them: each element needs at least a known number of bytes (binary: its scalar properties'
-/// sizes and its lists' count fields; ASCII: its line's newline, a loose bound that leaves a short
-/// last line to ply-rs, which names its line number), so a header that declares more elements
-/// than the file can hold is truncated or lying. ply-rs 0.1 reads element by element (it
-/// reserves nothing by the count), so this bounds any reader behind this function, not a crash
-/// seen today; it also names the culprit better than ply-rs's "failed to fill whole buffer".
-fn check_ply_counts<R: BufRead>(reader: &mut R, size: u64) -> Result<(), String> {
-    let mut header_bytes = 0u64;
-    let mut ascii = true;
-    // (name, count, minimum bytes per element)
-    let mut elements: Vec<(String, u64, u64)> = Vec::new();
-    let mut line = Vec::new();
-    loop {
-        line.clear();
-        let n = reader.by_ref().take(MAX_PLY_HEADER - header_bytes).read_until(b'\n', &mut line);
-        let n = n.map_err(|e| e.to_string())? as u64;
-        header_bytes += n;
-        if n == 0 || header_bytes >= MAX_PLY_HEADER {
-            return Err(format!(
-                "invalid PLY: no 'end_header' in the first {} bytes",
-                header_bytes.min(MAX_PLY_HEADER)
-            ));
-        }
-        let text = String::from_utf8_lossy(&line);
-        let words: Vec<&str> = text.split_whitespace().collect();
-        match words.as_slice() {
-            ["end_header"] => break,
-            ["format", f, ..] => ascii = *f == "ascii",
-            ["element", name, count] => {
-                let count =
-                    count.parse::<u64>().map_err(|_| format!("invalid PLY: element '{name}' count '{count}'"))?;
-                elements.push((name.to_string(), count, 0));
-            }
-            ["property", "list", count_type, _, _] => {
-                if let Some(e) = elements.last_mut() {
-                    e.2 += if ascii { 0 } else { scalar_size(count_type) };
-                }
-            }
-            ["property", ty, _] => {
-                if let Some(e) = elements.last_mut() {
-                    e.2 += if ascii { 0 } else { scalar_size(ty) };
-                }
-            }
-            _ => {}
-        }
-    }
-    let body = size.saturating_sub(header_bytes);
-    let mut need = 0u64;
-    for (name, count, per) in &elements {
-        // An ASCII file's last line may lack its newline: one byte of slack per file.
-        need = need.saturating_add(count.saturating_mul((*per).max(1)));
-        if need > body + 1 {
-            return Err(format!(
-                "invalid PLY: the header declares {count} '{name}' elements, which need at least {need} bytes, but \
-                 only {body} bytes follow the header (truncated file or wrong count)"
-            ));
-        }
-    }
-    Ok(())
-}
-
-/// Bytes of a PLY scalar type (1 for an unknown name: ply-rs reports it).
-fn scalar_size(ty: &str) -> u64 {
-    match ty {
-        "char" | "uchar" | "int8" | "uint8" => 1,
-        "short" | "ushort" | "int16" | "uint16" => 2,
-        "int" | "uint" | "float" | "int32" | "uint32" | "float32" => 4,
-        "double" | "float64" => 8,
-        _ => 1,
-    }
 }
 
 /// ply-rs's parse errors span several lines and nest `Debug` output of inner `io::Error`s

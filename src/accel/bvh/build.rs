@@ -1,15 +1,20 @@
 //! Binned-SAH construction (Wald 2007, "On fast Construction of SAH-based Bounding Volume
-//! Hierarchies"): split candidates are the boundaries of `BINS` equal-width bins over the centroid
-//! bounds on each axis, costed with the surface-area heuristic; subtrees are built in parallel with
-//! rayon and the result is flattened in depth-first order.
+//! Hierarchies") of a 4-wide hierarchy, built directly as Embree's builders do: a node starts with
+//! its primitives as one child, and the child with the largest surface area is split by the binned
+//! SAH until the node has four children or none can be split; each child is then a leaf or the
+//! root of a subtree. Split candidates are the boundaries of `BINS` equal-width bins over the
+//! centroid bounds on each axis; the bins also carry their primitives' bounds and centroid bounds,
+//! so the two halves of a split know their extents without another pass over the primitives.
 //!
-//! Nodes are written straight into their final array: a subtree over `n` primitives has at most
-//! `2n − 1` nodes, so each recursive call owns a disjoint slice of that size (left child right
-//! after its parent, right child after the left child's slice), and parallel subtrees write without
-//! synchronisation. Slots left unused by leaves holding several primitives are squeezed out by one
-//! depth-first pass at the end, which keeps the order (left child at `parent + 1`).
+//! Subtrees over more than `PARALLEL_PRIMS` primitives are built in parallel with rayon, each into
+//! its own node array that the parent appends to its own (renumbering child indices); smaller
+//! subtrees append straight to their parent's array. At the root's append the subtrees and the
+//! final array are alive together: the build holds up to twice the nodes (`Bvh::build_with`
+//! counts it). The nodes array grows to what the tree
+//! needs (about one node per three leaves) instead of a worst-case preallocation, which matters for
+//! the 10M-triangle scene of issue 20.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::geometry::Aabb;
@@ -30,31 +35,63 @@ impl BuildPrim {
     }
 }
 
-/// A flattened node: 32 bytes, aligned so that one node never straddles two cache lines.
-/// Interior nodes (`count == 0`) have their first child at the next index and their second child
-/// at `offset`; `axis` is the split axis, which picks the visiting order. Leaves hold `count`
-/// triangles starting at `offset` in the leaf-ordered triangle arrays.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[repr(C, align(32))]
+/// `Node::count` of a slot that holds nothing (its box is empty, so no ray enters it either).
+pub(super) const EMPTY: u32 = u32::MAX;
+
+/// A 4-wide node: 128 bytes, two cache lines, laid out for testing the four boxes at once.
+/// `bounds` holds min x, min y, min z, max x, max y, max z, each for the four slots. A slot with
+/// `count == 0` is an interior child (node index in `child`); with `count == EMPTY` it is unused;
+/// otherwise a leaf of `count` triangles starting at `child` in the leaf-ordered triangle arrays.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(64))]
 pub(super) struct Node {
-    pub min: Vec3,
-    pub offset: u32,
-    pub max: Vec3,
-    pub count: u16,
-    pub axis: u16,
+    pub bounds: [[f32; 4]; 6],
+    pub child: [u32; 4],
+    pub count: [u32; 4],
+}
+
+impl Node {
+    const UNUSED: Node = Node {
+        bounds: [
+            [f32::INFINITY; 4],
+            [f32::INFINITY; 4],
+            [f32::INFINITY; 4],
+            [f32::NEG_INFINITY; 4],
+            [f32::NEG_INFINITY; 4],
+            [f32::NEG_INFINITY; 4],
+        ],
+        child: [0; 4],
+        count: [EMPTY; 4],
+    };
+
+    fn set(&mut self, slot: usize, b: &Aabb, child: u32, count: u32) {
+        for axis in 0..3 {
+            self.bounds[axis][slot] = b.min[axis];
+            self.bounds[axis + 3][slot] = b.max[axis];
+        }
+        self.child[slot] = child;
+        self.count[slot] = count;
+    }
+
+    /// The box of slot `k`.
+    #[cfg(test)]
+    pub fn slot_bounds(&self, k: usize) -> Aabb {
+        let b = &self.bounds;
+        Aabb { min: Vec3::new(b[0][k], b[1][k], b[2][k]), max: Vec3::new(b[3][k], b[4][k], b[5][k]) }
+    }
 }
 
 /// Tuning of the build.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BuildParams {
-    /// Leaves hold at most this many triangles (≤ 255).
+    /// Leaves hold at most this many triangles (≥ 1).
     pub max_leaf: usize,
     /// SAH cost of visiting an interior node, relative to one ray–triangle test.
     pub traversal_cost: f32,
 }
 
 impl Default for BuildParams {
-    /// Measured on the benchmark scene (docs/bench.md): see `Bvh`'s documentation.
+    /// Measured on the benchmark scene (docs/bench.md).
     fn default() -> Self {
         BuildParams { max_leaf: 8, traversal_cost: 1.0 }
     }
@@ -62,57 +99,53 @@ impl Default for BuildParams {
 
 /// Number of SAH bins per axis.
 const BINS: usize = 16;
-/// Subtrees (and bounds/binning passes) over more primitives than this run in parallel; below it
-/// rayon's task overhead outweighs the work.
+/// Subtrees (and binning passes) over more primitives than this run in parallel; below it rayon's
+/// task overhead outweighs the work.
 const PARALLEL_PRIMS: usize = 4096;
 /// Chunk size of the parallel binning and bounds passes.
 const CHUNK: usize = 16 * 1024;
-/// Below this depth the SAH decides; deeper, splits are forced to the object median so that the
-/// depth stays below `MAX_DEPTH` (a median split halves the count: ≤ 32 more levels for < 2^32
-/// primitives), which bounds the traversal stack.
+/// Below this many binary splits from the root the SAH decides; deeper, splits are forced to the
+/// object median so that the depth stays below `MAX_DEPTH` (a median split halves the count: ≤ 32
+/// more levels for < 2^32 primitives), which bounds the traversal stack. Every level of the 4-wide
+/// tree is at least one binary split, so its depth is bounded by `MAX_DEPTH` too.
 const SAH_DEPTH: usize = 64;
 /// Bound on the tree depth (root at depth 0), hence on the traversal stack.
 pub(super) const MAX_DEPTH: usize = SAH_DEPTH + 33;
 
+/// A bin: bounds and centroid bounds of its primitives, and their number.
 #[derive(Clone, Copy)]
 struct Bin {
     bounds: Aabb,
+    centroids: Aabb,
     count: u32,
 }
 
-impl Default for Bin {
-    fn default() -> Self {
-        Bin { bounds: Aabb::EMPTY, count: 0 }
+impl Bin {
+    const EMPTY: Bin = Bin { bounds: Aabb::EMPTY, centroids: Aabb::EMPTY, count: 0 };
+    fn merge(&self, o: &Bin) -> Bin {
+        Bin {
+            bounds: self.bounds.union(&o.bounds),
+            centroids: self.centroids.union(&o.centroids),
+            count: self.count + o.count,
+        }
     }
 }
 
-/// Bounds of the primitives and of their centroids.
-#[derive(Clone, Copy)]
-struct Extent {
-    bounds: Aabb,
-    centroids: Aabb,
-}
-
-impl Extent {
-    const EMPTY: Extent = Extent { bounds: Aabb::EMPTY, centroids: Aabb::EMPTY };
-    fn merge(self, o: Extent) -> Extent {
-        Extent { bounds: self.bounds.union(&o.bounds), centroids: self.centroids.union(&o.centroids) }
-    }
-}
-
-fn extent_seq(prims: &[BuildPrim]) -> Extent {
-    let mut e = Extent::EMPTY;
+fn extent_seq(prims: &[BuildPrim]) -> Bin {
+    let mut e = Bin::EMPTY;
     for p in prims {
         e.bounds.min = e.bounds.min.min(p.min);
         e.bounds.max = e.bounds.max.max(p.max);
         e.centroids.grow(p.centroid());
     }
+    e.count = prims.len() as u32;
     e
 }
 
-fn extent(prims: &[BuildPrim]) -> Extent {
+/// Bounds and centroid bounds of `prims`.
+fn extent(prims: &[BuildPrim]) -> Bin {
     if prims.len() > PARALLEL_PRIMS * 4 {
-        prims.par_chunks(CHUNK).map(extent_seq).reduce(|| Extent::EMPTY, Extent::merge)
+        prims.par_chunks(CHUNK).map(extent_seq).reduce(|| Bin::EMPTY, |a, b| a.merge(&b))
     } else {
         extent_seq(prims)
     }
@@ -122,40 +155,72 @@ fn extent(prims: &[BuildPrim]) -> Extent {
 #[derive(Clone, Copy)]
 struct Binner {
     origin: Vec3,
-    /// `BINS / extent` per axis (0 on axes without extent, which are not split).
+    /// `bins / extent` per axis (0 on axes without extent, which are not split).
     scale: Vec3,
+    /// Bins in use (at most `BINS`): fewer for small ranges, where a split is one of few anyway
+    /// and the sweep over the bins would cost more than the binning.
+    bins: usize,
 }
 
 impl Binner {
     #[inline]
     fn bin(&self, c: Vec3, axis: usize) -> usize {
         let x = (c[axis] - self.origin[axis]) * self.scale[axis];
-        // `as` saturates (and maps NaN to 0); the `min` catches x == BINS from rounding.
-        (x as usize).min(BINS - 1)
+        // `as` saturates (and maps NaN to 0); the `min` catches x == bins from rounding.
+        (x as usize).min(self.bins - 1)
     }
 }
 
 type Bins = [[Bin; BINS]; 3];
 
+/// A bin while binning: the same as [`Bin`] in SIMD vectors (one `minps`/`maxps` per update).
+#[derive(Clone, Copy)]
+struct BinA {
+    min: Vec3A,
+    max: Vec3A,
+    cmin: Vec3A,
+    cmax: Vec3A,
+    count: u32,
+}
+
 fn bin_seq(prims: &[BuildPrim], binner: &Binner) -> Bins {
-    let mut bins = [[Bin::default(); BINS]; 3];
+    let empty = BinA {
+        min: Vec3A::INFINITY,
+        max: Vec3A::NEG_INFINITY,
+        cmin: Vec3A::INFINITY,
+        cmax: Vec3A::NEG_INFINITY,
+        count: 0,
+    };
+    let mut bins = [[empty; BINS]; 3];
+    let origin = Vec3A::from(binner.origin);
+    let scale = Vec3A::from(binner.scale);
     for p in prims {
-        let c = p.centroid();
+        let (lo, hi) = (Vec3A::from(p.min), Vec3A::from(p.max));
+        let c = (lo + hi) * 0.5;
+        // The bin on each axis, as `Binner::bin` computes it (`as` saturates NaN and negatives).
+        let k = (c - origin) * scale;
         for (axis, axis_bins) in bins.iter_mut().enumerate() {
-            let b = &mut axis_bins[binner.bin(c, axis)];
+            let b = &mut axis_bins[(k[axis] as usize).min(binner.bins - 1)];
             b.count += 1;
-            b.bounds.min = b.bounds.min.min(p.min);
-            b.bounds.max = b.bounds.max.max(p.max);
+            b.min = b.min.min(lo);
+            b.max = b.max.max(hi);
+            b.cmin = b.cmin.min(c);
+            b.cmax = b.cmax.max(c);
         }
     }
-    bins
+    bins.map(|axis| {
+        axis.map(|b| Bin {
+            bounds: Aabb { min: b.min.into(), max: b.max.into() },
+            centroids: Aabb { min: b.cmin.into(), max: b.cmax.into() },
+            count: b.count,
+        })
+    })
 }
 
 fn merge_bins(mut a: Bins, b: Bins) -> Bins {
     for (aa, ba) in a.iter_mut().zip(b.iter()) {
         for (x, y) in aa.iter_mut().zip(ba.iter()) {
-            x.count += y.count;
-            x.bounds = x.bounds.union(&y.bounds);
+            *x = x.merge(y);
         }
     }
     a
@@ -163,7 +228,7 @@ fn merge_bins(mut a: Bins, b: Bins) -> Bins {
 
 fn bin_all(prims: &[BuildPrim], binner: &Binner) -> Bins {
     if prims.len() > PARALLEL_PRIMS * 4 {
-        prims.par_chunks(CHUNK).map(|c| bin_seq(c, binner)).reduce(|| [[Bin::default(); BINS]; 3], merge_bins)
+        prims.par_chunks(CHUNK).map(|c| bin_seq(c, binner)).reduce(|| [[Bin::EMPTY; BINS]; 3], merge_bins)
     } else {
         bin_seq(prims, binner)
     }
@@ -178,9 +243,10 @@ struct Split {
 
 /// Sweeps the bins of every axis and returns the split with the least SAH cost
 /// `C_trav + (A_L N_L + A_R N_R) / A` in units of one triangle test (the leaf alternative costs `N`).
-fn best_split(bins: &Bins, parent_area: f32, centroid_extent: Vec3, params: &BuildParams) -> Option<Split> {
+fn best_split(bins: &Bins, nb: usize, parent_area: f32, centroid_extent: Vec3, params: &BuildParams) -> Option<Split> {
     let mut best: Option<Split> = None;
     for (axis, axis_bins) in bins.iter().enumerate() {
+        let axis_bins = &axis_bins[..nb];
         if centroid_extent[axis].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             continue;
         }
@@ -189,7 +255,7 @@ fn best_split(bins: &Bins, parent_area: f32, centroid_extent: Vec3, params: &Bui
         let mut right_count = [0u32; BINS];
         let mut acc = Aabb::EMPTY;
         let mut count = 0u32;
-        for i in (1..BINS).rev() {
+        for i in (1..nb).rev() {
             acc = acc.union(&axis_bins[i].bounds);
             count += axis_bins[i].count;
             right_count[i] = count;
@@ -197,7 +263,7 @@ fn best_split(bins: &Bins, parent_area: f32, centroid_extent: Vec3, params: &Bui
         }
         let mut acc = Aabb::EMPTY;
         let mut left_count = 0u32;
-        for i in 1..BINS {
+        for i in 1..nb {
             acc = acc.union(&axis_bins[i - 1].bounds);
             left_count += axis_bins[i - 1].count;
             if left_count == 0 || right_count[i] == 0 {
@@ -227,110 +293,172 @@ fn partition(prims: &mut [BuildPrim], left: impl Fn(&BuildPrim) -> bool) -> usiz
     i
 }
 
-/// Builds the hierarchy over `prims` (reordered in place into leaf order) and returns the
-/// flattened nodes; empty for no primitives. `prims.len()` must be below 2^31 so that node
-/// indices fit in `u32` (2^31 triangles would need well over 100 GB).
-pub(super) fn build(prims: &mut [BuildPrim], params: &BuildParams) -> Vec<Node> {
-    let n = prims.len();
-    if n == 0 {
-        return Vec::new();
-    }
-    assert!(n < (1 << 31), "{n} triangles exceed the BVH's 2^31 limit");
-    let mut nodes = vec![Node::default(); 2 * n - 1];
-    let params = BuildParams { max_leaf: params.max_leaf.clamp(1, 255), ..*params };
-    build_rec(prims, &mut nodes, 0, 0, 0, &params);
-    compact(&nodes)
+/// A contiguous range of a node's primitives, with its extents.
+#[derive(Clone, Copy)]
+struct Range {
+    start: usize,
+    len: usize,
+    /// Bounds, centroid bounds and count (`ext.count == len`).
+    ext: Bin,
+    /// Binary splits from the root.
+    depth: usize,
+    /// Decided: this range is a leaf.
+    leaf: bool,
 }
 
-fn build_rec(
-    prims: &mut [BuildPrim],
-    nodes: &mut [Node],
-    node_base: usize,
-    prim_base: usize,
-    depth: usize,
-    params: &BuildParams,
-) {
-    let n = prims.len();
-    debug_assert_eq!(nodes.len(), 2 * n - 1);
-    let Extent { bounds, centroids } = extent(prims);
-    let leaf = Node { min: bounds.min, offset: prim_base as u32, max: bounds.max, count: n as u16, axis: 0 };
-    if n == 1 {
-        nodes[0] = leaf;
-        return;
+/// Splits `r` (a range of `prims`) in two by the binned SAH, or by the object median when the SAH
+/// cannot; `None` when it should be a leaf. Reorders the range's primitives.
+fn split(prims: &mut [BuildPrim], r: &Range, params: &BuildParams) -> Option<(Range, Range)> {
+    let n = r.len;
+    if n <= 1 {
+        return None;
     }
-    let c_extent = centroids.extent();
-    let axis_of_largest = if c_extent.x >= c_extent.y && c_extent.x >= c_extent.z {
+    let slice = &mut prims[r.start..r.start + n];
+    let c_extent = r.ext.centroids.extent();
+    let half = |start: usize, len: usize, ext: Bin| Range { start, len, ext, depth: r.depth + 1, leaf: false };
+    if r.depth < SAH_DEPTH && c_extent.max_element() > 0.0 {
+        let nb = n.clamp(4, BINS);
+        let scale = Vec3::select(c_extent.cmpgt(Vec3::ZERO), Vec3::splat(nb as f32) / c_extent, Vec3::ZERO);
+        let binner = Binner { origin: r.ext.centroids.min, scale, bins: nb };
+        let bins = bin_all(slice, &binner);
+        if let Some(s) = best_split(&bins, nb, r.ext.bounds.surface_area(), c_extent, params) {
+            if n <= params.max_leaf && s.cost >= n as f32 {
+                return None;
+            }
+            let mid = partition(slice, |p| binner.bin(p.centroid(), s.axis) < s.bin);
+            if mid > 0 && mid < n {
+                let fold = |bins: &[Bin]| bins.iter().fold(Bin::EMPTY, |a, b| a.merge(b));
+                let (l, rt) = (fold(&bins[s.axis][..s.bin]), fold(&bins[s.axis][s.bin..]));
+                debug_assert_eq!((l.count as usize, rt.count as usize), (mid, n - mid));
+                return Some((half(r.start, mid, l), half(r.start + mid, n - mid, rt)));
+            }
+        }
+    }
+    // No SAH split: all centroids coincide, the SAH depth is exhausted, or the bounds overflowed to
+    // infinity. Small sets become a leaf; larger ones are halved at the object median of the widest
+    // centroid axis so that leaves stay small.
+    if n <= params.max_leaf {
+        return None;
+    }
+    let axis = if c_extent.x >= c_extent.y && c_extent.x >= c_extent.z {
         0
     } else if c_extent.y >= c_extent.z {
         1
     } else {
         2
     };
-
-    let mut split_at = None;
-    if depth < SAH_DEPTH && c_extent.max_element() > 0.0 {
-        let scale = Vec3::select(c_extent.cmpgt(Vec3::ZERO), Vec3::splat(BINS as f32) / c_extent, Vec3::ZERO);
-        let binner = Binner { origin: centroids.min, scale };
-        let bins = bin_all(prims, &binner);
-        if let Some(split) = best_split(&bins, bounds.surface_area(), c_extent, params) {
-            if n <= params.max_leaf && split.cost >= n as f32 {
-                nodes[0] = leaf;
-                return;
-            }
-            let mid = partition(prims, |p| binner.bin(p.centroid(), split.axis) < split.bin);
-            split_at = Some((mid, split.axis));
-        }
-    }
-    let (mid, axis) = match split_at {
-        Some((mid, axis)) if mid > 0 && mid < n => (mid, axis),
-        _ => {
-            // No SAH split: all centroids coincide, the SAH depth is exhausted, or the bounds
-            // overflowed to infinity. Small sets become a leaf; larger ones are halved at the
-            // object median of the widest centroid axis so that leaves stay small.
-            if n <= params.max_leaf {
-                nodes[0] = leaf;
-                return;
-            }
-            let mid = n / 2;
-            prims.select_nth_unstable_by(mid, |a, b| {
-                a.centroid()[axis_of_largest].total_cmp(&b.centroid()[axis_of_largest])
-            });
-            (mid, axis_of_largest)
-        }
-    };
-
-    let right_index = node_base + 2 * mid;
-    nodes[0] = Node { min: bounds.min, offset: right_index as u32, max: bounds.max, count: 0, axis: axis as u16 };
-    let (left_nodes, right_nodes) = nodes[1..].split_at_mut(2 * mid - 1);
-    let (left_prims, right_prims) = prims.split_at_mut(mid);
-    let left = |lp: &mut [BuildPrim], ln: &mut [Node]| build_rec(lp, ln, node_base + 1, prim_base, depth + 1, params);
-    let right =
-        |rp: &mut [BuildPrim], rn: &mut [Node]| build_rec(rp, rn, right_index, prim_base + mid, depth + 1, params);
-    if n > PARALLEL_PRIMS {
-        rayon::join(|| left(left_prims, left_nodes), || right(right_prims, right_nodes));
-    } else {
-        left(left_prims, left_nodes);
-        right(right_prims, right_nodes);
-    }
+    let mid = n / 2;
+    slice.select_nth_unstable_by(mid, |a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]));
+    let (l, rt) = (extent(&slice[..mid]), extent(&slice[mid..]));
+    Some((half(r.start, mid, l), half(r.start + mid, n - mid, rt)))
 }
 
-/// Squeezes out the unused slots, keeping depth-first order, and renumbers second children.
-fn compact(nodes: &[Node]) -> Vec<Node> {
-    let mut out: Vec<Node> = Vec::with_capacity(nodes.len());
-    // (index in `nodes`, index in `out` of the parent whose second child this is)
-    let mut stack: Vec<(usize, Option<usize>)> = vec![(0, None)];
-    while let Some((old, parent)) = stack.pop() {
-        let new = out.len();
-        if let Some(p) = parent {
-            out[p].offset = new as u32;
-        }
-        let node = nodes[old];
-        out.push(node);
-        if node.count == 0 {
-            stack.push((node.offset as usize, Some(new)));
-            stack.push((old + 1, None));
+/// Builds the hierarchy over `prims` (reordered in place into leaf order) and returns its nodes,
+/// the root first; empty for no primitives. `prims.len()` must be below 2^31 so that indices fit
+/// in `u32` (2^31 triangles would need well over 100 GB).
+pub(super) fn build(prims: &mut [BuildPrim], params: &BuildParams) -> Vec<Node> {
+    let n = prims.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    assert!(n < (1 << 31), "{n} triangles exceed the BVH's 2^31 limit");
+    let params = BuildParams { max_leaf: params.max_leaf.max(1), ..*params };
+    let root = Range { start: 0, len: n, ext: extent(prims), depth: 0, leaf: false };
+    let mut nodes = Vec::new();
+    build_node(prims, 0, vec![root], &mut nodes, &params);
+    nodes.shrink_to_fit();
+    nodes
+}
+
+/// Appends the subtree over `prims` (which start at `base` in the whole array) to `out`, its
+/// root first; `children` are its first children (one range, or the two halves of a split the
+/// parent already made). Returns the root's index in `out`.
+fn build_node(
+    prims: &mut [BuildPrim],
+    base: usize,
+    mut children: Vec<Range>,
+    out: &mut Vec<Node>,
+    params: &BuildParams,
+) -> u32 {
+    // Split the largest open child until there are four (Embree's wide-BVH builders do the same).
+    while children.len() < 4 {
+        let open = children
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| !c.leaf && c.len > 1)
+            .max_by(|a, b| a.1.ext.bounds.surface_area().total_cmp(&b.1.ext.bounds.surface_area()));
+        let Some((i, _)) = open else { break };
+        match split(prims, &children[i], params) {
+            None => children[i].leaf = true,
+            Some((l, r)) => {
+                children[i] = l;
+                children.insert(i + 1, r);
+            }
         }
     }
-    out.shrink_to_fit();
-    out
+    // Decide what the undecided children are: a leaf, or a node whose first split is made here.
+    let mut sub: Vec<Option<Vec<Range>>> = Vec::with_capacity(children.len());
+    for c in &mut children {
+        let first = if c.leaf { None } else { split(prims, c, params) };
+        c.leaf = first.is_none();
+        sub.push(first.map(|(l, r)| vec![l, r]));
+    }
+    let me = out.len();
+    out.push(Node::UNUSED);
+    let mut slots = [(0u32, 0u32); 4];
+    if prims.len() > PARALLEL_PRIMS {
+        // Disjoint slices, one per child, for the parallel subtrees.
+        let mut rest = &mut *prims;
+        let mut offset = 0;
+        let mut work = Vec::new();
+        for (k, (c, first)) in children.iter().zip(sub).enumerate() {
+            let (slice, tail) = std::mem::take(&mut rest).split_at_mut(c.start + c.len - offset);
+            rest = tail;
+            let slice = &mut slice[c.start - offset..];
+            offset = c.start + c.len;
+            match first {
+                None => slots[k] = ((base + c.start) as u32, c.len as u32),
+                Some(mut first) => {
+                    for f in &mut first {
+                        f.start -= c.start;
+                    }
+                    work.push((k, slice, base + c.start, first));
+                }
+            }
+        }
+        let subtrees: Vec<(usize, Vec<Node>)> = work
+            .into_par_iter()
+            .map(|(k, slice, b, first)| {
+                let mut nodes = Vec::new();
+                build_node(slice, b, first, &mut nodes, params);
+                (k, nodes)
+            })
+            .collect();
+        // One allocation of the exact size: growing by doubling while the subtrees are alive
+        // would hold up to three times the nodes at once.
+        out.reserve_exact(subtrees.iter().map(|(_, nodes)| nodes.len()).sum());
+        for (k, nodes) in subtrees {
+            let at = out.len() as u32;
+            out.extend(nodes.into_iter().map(|mut n| {
+                for (child, count) in n.child.iter_mut().zip(n.count) {
+                    if count == 0 {
+                        *child += at;
+                    }
+                }
+                n
+            }));
+            slots[k] = (at, 0);
+        }
+    } else {
+        for (k, (c, first)) in children.iter().zip(sub).enumerate() {
+            slots[k] = match first {
+                None => ((base + c.start) as u32, c.len as u32),
+                Some(first) => (build_node(prims, base, first, out, params), 0),
+            };
+        }
+    }
+    for (k, (c, (child, count))) in children.iter().zip(slots).enumerate() {
+        out[me].set(k, &c.ext.bounds, child, count);
+    }
+    me as u32
 }

@@ -2,7 +2,7 @@
 //! and Wald 2013 ("Watertight Ray/Triangle Intersection", JCGT 2(1)) and a conservative slab test
 //! against axis-aligned boxes that cannot be fooled by `0 * inf = NaN`.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 use crate::geometry::{gamma, Ray};
 
@@ -10,7 +10,7 @@ use crate::geometry::{gamma, Ray};
 #[derive(Clone, Copy, Debug)]
 pub struct RayPre {
     pub o: Vec3,
-    /// Component-wise `1 / d`; a zero component gives a signed infinity (wanted: see [`slab`]).
+    /// Component-wise `1 / d`; a zero component gives a signed infinity (wanted: see [`slab4`]).
     pub inv_d: Vec3,
     /// Whether each component of `d` is negative (sign bit, so `-0.0` counts as negative, which
     /// matches the sign of the infinity in `inv_d`).
@@ -29,7 +29,7 @@ pub struct RayPre {
 /// `1 + 2γ(3)`: pbrt-v4's factor (Sec. 6.8.2) that makes the far slab distance an upper bound of
 /// the exact value despite the rounding of `(b - o)` and of the product with `1/d`.
 #[inline]
-fn far_scale() -> f32 {
+pub(super) fn far_scale() -> f32 {
     1.0 + 2.0 * gamma(3)
 }
 
@@ -214,48 +214,43 @@ fn plane_distance_f64(o: Vec3, d: Vec3, v0: Vec3, v1: Vec3, v2: Vec3) -> f64 {
     dot(n, sub(v0, o)) / denom
 }
 
-/// `max(x, acc)` that keeps `acc` when `x` is NaN (`acc` is never NaN). One `maxss` on x86.
+/// Slab test of four boxes against the ray segment `[t_min, t_max]`: `rows` holds min x, min y,
+/// min z, max x, max y, max z of the four boxes (a node's layout). Returns the mask of the boxes
+/// that overlap the segment and each box's entry distance. Conservative: the far distance of each
+/// slab is scaled by `1 + 2γ(3)` (pbrt-v4 Sec. 6.8.2) so rounding never rejects a box the exact ray
+/// touches. A zero direction component makes `1/d` infinite; if the origin lies exactly on that
+/// slab's plane, `(b − o)·(1/d)` is `0 · inf = NaN`, meaning "the ray runs inside the plane": such a
+/// slab is ignored (it does not restrict t), which is exact for the far plane and conservative for
+/// the near one; `select` on an ordered comparison (false for NaN) keeps the running bound.
 #[inline(always)]
-fn max_keep(x: f32, acc: f32) -> f32 {
-    if x > acc {
-        x
-    } else {
-        acc
+pub fn slab4(pre: &RayPre, rows: &[[f32; 4]; 6], t_min: f32, t_max: f32) -> (u32, [f32; 4]) {
+    let mut near = Vec4::splat(t_min);
+    let mut far = Vec4::splat(t_max);
+    let scale = Vec4::splat(far_scale());
+    for axis in 0..3 {
+        let (lo, hi) = (Vec4::from_array(rows[axis]), Vec4::from_array(rows[axis + 3]));
+        let (n, f) = if pre.neg[axis] { (hi, lo) } else { (lo, hi) };
+        let o = Vec4::splat(pre.o[axis]);
+        let inv = Vec4::splat(pre.inv_d[axis]);
+        let tn = (n - o) * inv;
+        let tf = (f - o) * inv * scale;
+        near = Vec4::select(tn.cmpgt(near), tn, near);
+        far = Vec4::select(tf.cmplt(far), tf, far);
     }
-}
-
-/// `min(x, acc)` that keeps `acc` when `x` is NaN.
-#[inline(always)]
-fn min_keep(x: f32, acc: f32) -> f32 {
-    if x < acc {
-        x
-    } else {
-        acc
-    }
-}
-
-/// Slab test of the box `[min, max]` against the ray segment `[t_min, t_max]`; returns whether they
-/// overlap. Conservative: the far distance of each slab is scaled by `1 + 2γ(3)` (pbrt-v4 Sec.
-/// 6.8.2) so rounding never rejects a box the exact ray touches. A zero direction component makes
-/// `1/d` infinite; if the origin lies exactly on that slab's plane, `(b − o)·(1/d)` is `0 · inf =
-/// NaN`, meaning "the ray runs inside the plane": such a slab is ignored (it does not restrict t),
-/// which is exact for the far plane and conservative for the near one.
-#[inline(always)]
-pub fn slab(pre: &RayPre, min: Vec3, max: Vec3, t_min: f32, t_max: f32) -> bool {
-    let t0 = (min - pre.o) * pre.inv_d;
-    let t1 = (max - pre.o) * pre.inv_d;
-    let (nx, fx) = if pre.neg[0] { (t1.x, t0.x) } else { (t0.x, t1.x) };
-    let (ny, fy) = if pre.neg[1] { (t1.y, t0.y) } else { (t0.y, t1.y) };
-    let (nz, fz) = if pre.neg[2] { (t1.z, t0.z) } else { (t0.z, t1.z) };
-    let near = max_keep(nz, max_keep(ny, max_keep(nx, t_min)));
-    let scale = far_scale();
-    let far = min_keep(fz * scale, min_keep(fy * scale, min_keep(fx * scale, t_max)));
-    near <= far
+    (near.cmple(far).bitmask(), near.to_array())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The scalar view of [`slab4`]: one box in all four slots (which must agree).
+    fn slab(pre: &RayPre, min: Vec3, max: Vec3, t_min: f32, t_max: f32) -> bool {
+        let rows = [min.x, min.y, min.z, max.x, max.y, max.z].map(|v| [v; 4]);
+        let (mask, _) = slab4(pre, &rows, t_min, t_max);
+        assert!(mask == 0 || mask == 0b1111, "the four slots disagree: {mask:b}");
+        mask != 0
+    }
 
     fn hit(ray: &Ray, v: [Vec3; 3]) -> Option<(f32, f32, f32)> {
         intersect_triangle(&RayPre::new(ray)?, v[0], v[1], v[2], ray.t_min, ray.t_max)

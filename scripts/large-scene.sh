@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Issue 20's large-scene measurement (docs/benchmarks.md, "Large scenes"): loads the 10,008,338-
+# triangle displaced grid with each accelerator through `plexus info` (read the PLY, build the
+# scene and the accelerator, print the memory estimate) under /usr/bin/time -v, one run at a time,
+# and prints a Markdown table of wall time, CPU time, peak resident memory and `info`'s estimate.
+#
+#   scripts/large-scene.sh [DIR]        (default DIR: target/large-scene; PLEXUS=path overrides
+#                                        the binary, default target/release/plexus)
+#
+# Generates DIR/large-grid.ply (190 MB) and DIR/large-scene.toml with scripts/large-scene.py if
+# they are missing. Needs about 8 GB of free memory for the old reader, under 1.5 GB for the new.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+DIR="${1:-$ROOT/target/large-scene}"
+PLEXUS="${PLEXUS:-$ROOT/target/release/plexus}"
+REPS="${REPS:-1}"
+[ -f "$DIR/large-grid.ply" ] || python3 "$ROOT/scripts/large-scene.py" "$DIR"
+
+echo "load average: $(cut -d' ' -f1-3 /proc/loadavg); binary: $PLEXUS"
+echo
+echo "| accelerator | run | wall s | CPU s (user + sys) | peak RSS MiB | info estimate MiB | estimate / peak |"
+echo "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"
+for accel in embree bvh; do
+    for rep in $(seq 1 "$REPS"); do
+        /usr/bin/time -v -o "$DIR/time-$accel.txt" \
+            "$PLEXUS" info "$DIR/large-scene.toml" --accel "$accel" --json >"$DIR/info-$accel.json"
+        python3 - "$DIR/time-$accel.txt" "$DIR/info-$accel.json" "$accel" "$rep" <<'PY'
+import json, sys
+t = {}
+for line in open(sys.argv[1]):
+    k, _, v = line.strip().rpartition(": ")
+    t[k] = v
+h, m, s = (["0"] + t["Elapsed (wall clock) time (h:mm:ss or m:ss)"].split(":"))[-3:]
+wall = 3600 * float(h) + 60 * float(m) + float(s)
+cpu = float(t["User time (seconds)"]) + float(t["System time (seconds)"])
+peak = int(t["Maximum resident set size (kbytes)"]) / 1024
+est = json.load(open(sys.argv[2]))["render_memory"]["scene"]
+total = sum(est.values()) / 2**20
+print(f"| {sys.argv[3]} | {sys.argv[4]} | {wall:.1f} | {cpu:.1f} | {peak:.0f} | {total:.0f} | {total / peak:.2f} |")
+PY
+    done
+done

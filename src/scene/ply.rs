@@ -1,0 +1,542 @@
+//! PLY headers, and a streaming reader for binary PLY bodies.
+//!
+//! The header is parsed here once (`parse_header`) and its element counts are checked against the
+//! file's size before anything is allocated by them. A binary body is then read straight into the
+//! mesh's arrays (`read_binary`): one pass through a fixed-size buffer, with no per-vertex or
+//! per-face allocation. ply-rs, which builds a map of properties per element, held a 10M-triangle
+//! grid (190 MB) in 6.9 GB and took 27 s to read it (issue 20); it still reads ASCII files, which
+//! are small in practice.
+
+use std::io::{BufRead, Read};
+
+use glam::{Vec2, Vec3};
+
+use super::mesh_io::RawMesh;
+
+/// The longest PLY header read before giving up (real headers are a few hundred bytes).
+const MAX_PLY_HEADER: u64 = 1 << 20;
+
+/// Bytes of the body read from the file at a time.
+const CHUNK: usize = 1 << 20;
+
+/// A PLY body's encoding.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Format {
+    Ascii,
+    BinaryLittleEndian,
+    BinaryBigEndian,
+}
+
+/// A PLY scalar type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Scalar {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    F32,
+    F64,
+}
+
+impl Scalar {
+    fn parse(name: &str) -> Option<Scalar> {
+        Some(match name {
+            "char" | "int8" => Scalar::I8,
+            "uchar" | "uint8" => Scalar::U8,
+            "short" | "int16" => Scalar::I16,
+            "ushort" | "uint16" => Scalar::U16,
+            "int" | "int32" => Scalar::I32,
+            "uint" | "uint32" => Scalar::U32,
+            "float" | "float32" => Scalar::F32,
+            "double" | "float64" => Scalar::F64,
+            _ => return None,
+        })
+    }
+
+    fn size(self) -> usize {
+        match self {
+            Scalar::I8 | Scalar::U8 => 1,
+            Scalar::I16 | Scalar::U16 => 2,
+            Scalar::I32 | Scalar::U32 | Scalar::F32 => 4,
+            Scalar::F64 => 8,
+        }
+    }
+
+    fn is_integer(self) -> bool {
+        !matches!(self, Scalar::F32 | Scalar::F64)
+    }
+
+    /// Decodes `b` (exactly `self.size()` bytes).
+    #[inline]
+    fn decode(self, b: &[u8], big_endian: bool) -> f64 {
+        macro_rules! num {
+            ($t:ty) => {{
+                let a = b.try_into().unwrap_or_default();
+                (if big_endian { <$t>::from_be_bytes(a) } else { <$t>::from_le_bytes(a) }) as f64
+            }};
+        }
+        match self {
+            Scalar::I8 => b[0] as i8 as f64,
+            Scalar::U8 => b[0] as f64,
+            Scalar::I16 => num!(i16),
+            Scalar::U16 => num!(u16),
+            Scalar::I32 => num!(i32),
+            Scalar::U32 => num!(u32),
+            Scalar::F32 => num!(f32),
+            Scalar::F64 => num!(f64),
+        }
+    }
+}
+
+/// A property of an element: a scalar, or a list (a count, then that many items).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Kind {
+    Scalar(Scalar),
+    List { count: Scalar, item: Scalar },
+}
+
+#[derive(Clone, Debug)]
+pub(super) struct Property {
+    name: String,
+    kind: Kind,
+}
+
+#[derive(Clone, Debug)]
+pub(super) struct Element {
+    name: String,
+    count: u64,
+    properties: Vec<Property>,
+}
+
+impl Element {
+    fn find(&self, name: &str) -> Option<usize> {
+        self.properties.iter().position(|p| p.name == name)
+    }
+}
+
+/// A parsed header.
+#[derive(Clone, Debug)]
+pub(super) struct Header {
+    pub format: Format,
+    elements: Vec<Element>,
+}
+
+/// Reads the header from `reader` (left at the first byte of the body) and checks its element
+/// counts against the file's `size`: each element needs at least a known number of bytes
+/// (binary: its scalar properties' sizes and its lists' count fields; ASCII: its line's newline, a
+/// loose bound that leaves a short last line to ply-rs, which names its line number), so a header
+/// that declares more elements than the file can hold is truncated or lying, and is refused before
+/// any reader allocates by its counts.
+pub(super) fn parse_header<R: BufRead>(reader: &mut R, size: u64) -> Result<Header, String> {
+    let mut header_bytes = 0u64;
+    let mut format = None;
+    let mut elements: Vec<Element> = Vec::new();
+    let mut line = Vec::new();
+    let mut first = true;
+    loop {
+        line.clear();
+        let n = reader.by_ref().take(MAX_PLY_HEADER - header_bytes).read_until(b'\n', &mut line);
+        let n = n.map_err(|e| e.to_string())? as u64;
+        header_bytes += n;
+        if n == 0 || header_bytes >= MAX_PLY_HEADER {
+            return Err(format!(
+                "invalid PLY: no 'end_header' in the first {} bytes",
+                header_bytes.min(MAX_PLY_HEADER)
+            ));
+        }
+        let text = String::from_utf8_lossy(&line);
+        let words: Vec<&str> = text.split_whitespace().collect();
+        if std::mem::take(&mut first) {
+            if words.as_slice() != ["ply"] {
+                return Err("invalid PLY: the file does not start with the line 'ply'".into());
+            }
+            continue;
+        }
+        let unknown_type = |t: &str| format!("invalid PLY: unknown property type '{t}'");
+        match words.as_slice() {
+            ["end_header"] => break,
+            ["format", f, ..] => {
+                format = Some(match *f {
+                    "ascii" => Format::Ascii,
+                    "binary_little_endian" => Format::BinaryLittleEndian,
+                    "binary_big_endian" => Format::BinaryBigEndian,
+                    other => return Err(format!("invalid PLY: unknown format '{other}'")),
+                })
+            }
+            ["element", name, count] => {
+                let count =
+                    count.parse::<u64>().map_err(|_| format!("invalid PLY: element '{name}' count '{count}'"))?;
+                elements.push(Element { name: name.to_string(), count, properties: Vec::new() });
+            }
+            ["property", "list", count, item, name] => {
+                let kind = Kind::List {
+                    count: Scalar::parse(count).ok_or_else(|| unknown_type(count))?,
+                    item: Scalar::parse(item).ok_or_else(|| unknown_type(item))?,
+                };
+                let e = elements.last_mut().ok_or("invalid PLY: a property before any element")?;
+                e.properties.push(Property { name: name.to_string(), kind });
+            }
+            ["property", ty, name] => {
+                let kind = Kind::Scalar(Scalar::parse(ty).ok_or_else(|| unknown_type(ty))?);
+                let e = elements.last_mut().ok_or("invalid PLY: a property before any element")?;
+                e.properties.push(Property { name: name.to_string(), kind });
+            }
+            _ => {}
+        }
+    }
+    let format = format.ok_or("invalid PLY: no 'format' line")?;
+    let body = size.saturating_sub(header_bytes);
+    let mut need = 0u64;
+    for e in &elements {
+        let per: u64 = match format {
+            Format::Ascii => 1,
+            _ => e
+                .properties
+                .iter()
+                .map(|p| match p.kind {
+                    Kind::Scalar(s) | Kind::List { count: s, .. } => s.size() as u64,
+                })
+                .sum::<u64>()
+                .max(1),
+        };
+        // An ASCII file's last line may lack its newline: one byte of slack per file.
+        need = need.saturating_add(e.count.saturating_mul(per));
+        if need > body + 1 {
+            return Err(format!(
+                "invalid PLY: the header declares {} '{}' elements, which need at least {need} bytes, but only {body} \
+                 bytes follow the header (truncated file or wrong count)",
+                e.count, e.name
+            ));
+        }
+    }
+    Ok(Header { format, elements })
+}
+
+/// The body, read through one reusable buffer.
+struct Body<R> {
+    inner: R,
+    buf: Vec<u8>,
+    pos: usize,
+    end: usize,
+}
+
+impl<R: Read> Body<R> {
+    /// The next `n` bytes, or `None` at the end of the file.
+    #[inline]
+    fn take(&mut self, n: usize) -> Result<Option<&[u8]>, String> {
+        if self.end - self.pos < n && !self.refill(n)? {
+            return Ok(None);
+        }
+        let s = &self.buf[self.pos..self.pos + n];
+        self.pos += n;
+        Ok(Some(s))
+    }
+
+    /// Makes at least `n` bytes available; false at the end of the file.
+    #[cold]
+    fn refill(&mut self, n: usize) -> Result<bool, String> {
+        self.buf.copy_within(self.pos..self.end, 0);
+        self.end -= self.pos;
+        self.pos = 0;
+        if self.buf.len() < n {
+            self.buf.resize(n, 0);
+        }
+        while self.end < n {
+            match self.inner.read(&mut self.buf[self.end..]) {
+                Ok(0) => return Ok(false),
+                Ok(k) => self.end += k,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e.to_string()),
+            }
+        }
+        Ok(true)
+    }
+}
+
+/// Where the mesh's attributes are among the vertex element's properties.
+struct VertexLayout {
+    position: [usize; 3],
+    normal: Option<[usize; 3]>,
+    uv: Option<[usize; 2]>,
+}
+
+impl VertexLayout {
+    fn new(e: &Element) -> Result<VertexLayout, String> {
+        let scalar = |k: &str| -> Result<Option<usize>, String> {
+            match e.find(k) {
+                Some(i) if matches!(e.properties[i].kind, Kind::List { .. }) => {
+                    Err(format!("invalid PLY: vertex property '{k}' is a list, not a number"))
+                }
+                found => Ok(found),
+            }
+        };
+        let need = |k: &str| scalar(k)?.ok_or_else(|| format!("invalid PLY: the vertex element has no property '{k}'"));
+        let all3 = |a: &str, b: &str, c: &str| -> Result<Option<[usize; 3]>, String> {
+            Ok(match (scalar(a)?, scalar(b)?, scalar(c)?) {
+                (Some(x), Some(y), Some(z)) => Some([x, y, z]),
+                _ => None,
+            })
+        };
+        let both = |a: &str, b: &str| -> Result<Option<[usize; 2]>, String> {
+            Ok(match (scalar(a)?, scalar(b)?) {
+                (Some(x), Some(y)) => Some([x, y]),
+                _ => None,
+            })
+        };
+        Ok(VertexLayout {
+            position: [need("x")?, need("y")?, need("z")?],
+            normal: all3("nx", "ny", "nz")?,
+            uv: match both("u", "v")? {
+                Some(uv) => Some(uv),
+                None => both("s", "t")?,
+            },
+        })
+    }
+}
+
+/// Reads a binary body (`header.format` is binary) after `parse_header` has read the header:
+/// `vertex` with x, y, z and optionally nx, ny, nz and u, v (or s, t); `face` with a
+/// `vertex_indices` (or `vertex_index`) list, polygons split into fans; other elements are
+/// skipped. The arrays are allocated once by the header's counts, which `parse_header` has bounded
+/// by the file's size.
+pub(super) fn read_binary<R: Read>(header: &Header, reader: R) -> Result<RawMesh, String> {
+    let big_endian = header.format == Format::BinaryBigEndian;
+    let vertex = header.elements.iter().position(|e| e.name == "vertex").ok_or("invalid PLY: no 'vertex' element")?;
+    let face = header.elements.iter().position(|e| e.name == "face").ok_or("invalid PLY: no 'face' element")?;
+    let layout = VertexLayout::new(&header.elements[vertex])?;
+    let fe = &header.elements[face];
+    let list = fe
+        .find("vertex_indices")
+        .or_else(|| fe.find("vertex_index"))
+        .ok_or("invalid PLY: the face element has no 'vertex_indices' list")?;
+    match fe.properties[list].kind {
+        Kind::List { item, .. } if item.is_integer() => {}
+        _ => return Err("invalid PLY: 'vertex_indices' is not an integer list".into()),
+    }
+
+    let mut body = Body { inner: reader, buf: vec![0; CHUNK], pos: 0, end: 0 };
+    let mut out = RawMesh::default();
+    let mut values = Vec::new();
+    let mut fan: Vec<u32> = Vec::new();
+    let last = vertex.max(face);
+    for (k, e) in header.elements.iter().enumerate().take(last + 1) {
+        let ends = |i: u64| format!("invalid PLY: the file ends inside {} {i} of {}", e.name, e.count);
+        if k == vertex {
+            // `count` fits in usize: parse_header bounded it by the file's size.
+            let n = e.count as usize;
+            // One spare slot: `TriangleMesh::new` appends its padding vertex without reallocating.
+            out.positions = Vec::with_capacity(n + 1);
+            let mut normals = layout.normal.map(|_| Vec::with_capacity(n));
+            let mut uvs = layout.uv.map(|_| Vec::with_capacity(n));
+            for i in 0..e.count {
+                read_scalars(&mut body, e, big_endian, &mut values)?.ok_or_else(|| ends(i))?;
+                let v = |j: usize| values[j] as f32;
+                let [x, y, z] = layout.position;
+                out.positions.push(Vec3::new(v(x), v(y), v(z)));
+                if let (Some(ns), Some([a, b, c])) = (normals.as_mut(), layout.normal) {
+                    ns.push(Vec3::new(v(a), v(b), v(c)));
+                }
+                if let (Some(uv), Some([a, b])) = (uvs.as_mut(), layout.uv) {
+                    uv.push(Vec2::new(v(a), v(b)));
+                }
+            }
+            out.normals = normals;
+            out.uvs = uvs;
+        } else if k == face {
+            out.indices = Vec::with_capacity(e.count as usize);
+            for f in 0..e.count {
+                for (j, p) in e.properties.iter().enumerate() {
+                    match p.kind {
+                        Kind::Scalar(s) => {
+                            body.take(s.size())?.ok_or_else(|| ends(f))?;
+                        }
+                        Kind::List { count, item } => {
+                            let c = count.decode(body.take(count.size())?.ok_or_else(|| ends(f))?, big_endian);
+                            if !(c >= 0.0) {
+                                return Err(format!("face {f}: list '{}' has a negative length {c}", p.name));
+                            }
+                            if j != list {
+                                for _ in 0..c as u64 {
+                                    body.take(item.size())?.ok_or_else(|| ends(f))?;
+                                }
+                                continue;
+                            }
+                            if c < 3.0 {
+                                return Err(format!("face {f}: expected at least 3 vertices, got {c}"));
+                            }
+                            fan.clear();
+                            for _ in 0..c as u64 {
+                                let i = item.decode(body.take(item.size())?.ok_or_else(|| ends(f))?, big_endian);
+                                if i < 0.0 {
+                                    return Err(format!("face {f}: vertex index {i} is negative"));
+                                }
+                                // Integer items decode exactly into f64; u32 holds every one left.
+                                fan.push(i as u32);
+                            }
+                            for t in 1..fan.len() - 1 {
+                                out.indices.push([fan[0], fan[t], fan[t + 1]]);
+                            }
+                        }
+                    }
+                }
+            }
+        } else {
+            for i in 0..e.count {
+                skip_element(&mut body, e, big_endian)?.ok_or_else(|| ends(i))?;
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Reads one element's scalar properties into `values` (lists are read past and leave 0).
+/// `None` at the end of the file.
+#[inline]
+fn read_scalars<R: Read>(
+    body: &mut Body<R>,
+    e: &Element,
+    big_endian: bool,
+    values: &mut Vec<f64>,
+) -> Result<Option<()>, String> {
+    values.clear();
+    for p in &e.properties {
+        match p.kind {
+            Kind::Scalar(s) => match body.take(s.size())? {
+                Some(b) => values.push(s.decode(b, big_endian)),
+                None => return Ok(None),
+            },
+            Kind::List { .. } => {
+                if skip_list(body, p.kind, big_endian)?.is_none() {
+                    return Ok(None);
+                }
+                values.push(0.0);
+            }
+        }
+    }
+    Ok(Some(()))
+}
+
+/// Reads past one element. `None` at the end of the file.
+fn skip_element<R: Read>(body: &mut Body<R>, e: &Element, big_endian: bool) -> Result<Option<()>, String> {
+    for p in &e.properties {
+        let done = match p.kind {
+            Kind::Scalar(s) => body.take(s.size())?.map(drop),
+            Kind::List { .. } => skip_list(body, p.kind, big_endian)?,
+        };
+        if done.is_none() {
+            return Ok(None);
+        }
+    }
+    Ok(Some(()))
+}
+
+/// Reads past one list (its count, then its items one at a time, so that a lying count meets the
+/// end of the file instead of an allocation). `None` at the end of the file.
+fn skip_list<R: Read>(body: &mut Body<R>, kind: Kind, big_endian: bool) -> Result<Option<()>, String> {
+    let Kind::List { count, item } = kind else { return Ok(Some(())) };
+    let Some(b) = body.take(count.size())? else { return Ok(None) };
+    let c = count.decode(b, big_endian);
+    if !(c >= 0.0) {
+        return Err(format!("invalid PLY: a list has a negative length {c}"));
+    }
+    for _ in 0..c as u64 {
+        if body.take(item.size())?.is_none() {
+            return Ok(None);
+        }
+    }
+    Ok(Some(()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(bytes: &[u8]) -> Result<RawMesh, String> {
+        let mut r = bytes;
+        let header = parse_header(&mut r, bytes.len() as u64)?;
+        read_binary(&header, r)
+    }
+
+    fn header(format: &str, vertex_props: &str, face_props: &str, nv: usize, nf: usize) -> Vec<u8> {
+        format!(
+            "ply\nformat {format} 1.0\ncomment test\nelement vertex {nv}\n{vertex_props}element face {nf}\n\
+             {face_props}end_header\n"
+        )
+        .into_bytes()
+    }
+
+    #[test]
+    fn reads_both_endiannesses_with_normals_uvs_fans_and_extra_properties() {
+        for big in [false, true] {
+            let format = if big { "binary_big_endian" } else { "binary_little_endian" };
+            let vp = "property double x\nproperty float y\nproperty float z\nproperty uchar red\n\
+                      property float nx\nproperty float ny\nproperty float nz\nproperty float s\nproperty float t\n";
+            let fp = "property uchar flags\nproperty list uchar uint vertex_indices\nproperty list int float junk\n";
+            let mut b = header(format, vp, fp, 4, 1);
+            let f32b = |v: f32| if big { v.to_be_bytes() } else { v.to_le_bytes() };
+            for k in 0..4 {
+                let x = k as f64;
+                b.extend(if big { x.to_be_bytes() } else { x.to_le_bytes() });
+                b.extend(f32b(k as f32 + 0.5));
+                b.extend(f32b(-1.0));
+                b.push(7);
+                for v in [0.0, 0.0, 1.0, 0.25 * k as f32, 0.5] {
+                    b.extend(f32b(v));
+                }
+            }
+            b.push(9);
+            b.push(4);
+            for i in [0u32, 1, 2, 3] {
+                b.extend(if big { i.to_be_bytes() } else { i.to_le_bytes() });
+            }
+            b.extend(if big { 1i32.to_be_bytes() } else { 1i32.to_le_bytes() });
+            b.extend(f32b(3.0));
+            let m = read(&b).expect("valid");
+            assert_eq!(m.positions.len(), 4);
+            assert_eq!(m.positions[2], Vec3::new(2.0, 2.5, -1.0));
+            assert_eq!(m.indices, vec![[0, 1, 2], [0, 2, 3]]);
+            assert_eq!(m.normals.as_deref().map(|n| n[3]), Some(Vec3::Z));
+            assert_eq!(m.uvs.as_deref().map(|u| u[1]), Some(Vec2::new(0.25, 0.5)));
+            assert!(m.positions.capacity() > m.positions.len(), "room for the padding vertex");
+        }
+    }
+
+    #[test]
+    fn malformed_bodies_are_errors_naming_the_element() {
+        let vp = "property float x\nproperty float y\nproperty float z\n";
+        let fp = "property list uchar int vertex_indices\n";
+        let mut ok = header("binary_little_endian", vp, fp, 3, 1);
+        ok.extend([0u8; 36]);
+        ok.push(3);
+        for i in [0i32, 1, 2] {
+            ok.extend(i.to_le_bytes());
+        }
+        assert_eq!(read(&ok).expect("valid").indices, vec![[0, 1, 2]]);
+        // Truncated inside the face's list.
+        let e = read(&ok[..ok.len() - 2]).expect_err("truncated");
+        assert!(e.contains("ends inside face 0 of 1"), "{e}");
+        // A negative index.
+        let mut neg = ok.clone();
+        let n = neg.len();
+        neg[n - 4..].copy_from_slice(&(-5i32).to_le_bytes());
+        assert!(read(&neg).expect_err("negative").contains("vertex index -5 is negative"));
+        // Two vertices in a face.
+        let mut two = ok.clone();
+        two[n - 13] = 2;
+        assert!(read(&two).expect_err("two").contains("at least 3 vertices"));
+        // A list count that lies: it meets the end of the file, not an allocation.
+        let mut lie = ok.clone();
+        lie[n - 13] = 255;
+        assert!(read(&lie).expect_err("lie").contains("ends inside face 0"));
+        // Missing pieces and unknown types.
+        let no_z = header("binary_little_endian", "property float x\nproperty float y\n", fp, 0, 0);
+        assert!(read(&no_z).expect_err("no z").contains("no property 'z'"));
+        let float_list = header("binary_little_endian", vp, "property list uchar float vertex_indices\n", 0, 0);
+        assert!(read(&float_list).expect_err("floats").contains("not an integer list"));
+        let odd = header("binary_little_endian", "property quad x\n", fp, 0, 0);
+        assert!(read(&odd).expect_err("type").contains("unknown property type 'quad'"));
+        assert!(read(b"plx\nformat ascii 1.0\nend_header\n").expect_err("magic").contains("start with"));
+    }
+}
