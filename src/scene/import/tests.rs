@@ -467,7 +467,11 @@ fn hostile_files_say_exactly_what_is_unsupported() {
         let xml = scene("0.6.0", SENSOR_06, &format!("{LIT_TRIANGLE_06}\n{body}"));
         let err = import(d.path(), &xml).expect_err(want).to_string();
         let line = line_of(&xml, at);
-        assert!(err.starts_with(&format!("{}:{line}: ", d.path().join("scene.xml").display())) || err.contains(&format!("scene.xml:{line}: ")), "{err}");
+        assert!(
+            err.starts_with(&format!("{}:{line}: ", d.path().join("scene.xml").display()))
+                || err.contains(&format!("scene.xml:{line}: ")),
+            "{err}"
+        );
         assert!(err.contains(want) && !err.contains('\n'), "{err}\nwanted: {want}");
     }
     let warned = [
