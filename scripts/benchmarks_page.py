@@ -194,6 +194,10 @@ def main():
         out.append(tables + "\n")
     out.append("## Reading the results\n")
     out.append(reading + "\n")
+    large = os.path.join(ROOT, "docs", "bench", "large-scene.md")
+    if os.path.exists(large):
+        with open(large) as f:
+            out.append(f.read().strip() + "\n")
     with open(os.path.join(ROOT, "docs", "benchmarks.md"), "w") as f:
         f.write("\n".join(out))
 

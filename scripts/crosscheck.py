@@ -56,8 +56,50 @@ def ward_as_conductor():
             f'<rgb name="eta" value="{eta[0]}, {eta[1]}, {eta[2]}"/><rgb name="k" value="{k[0]}, {k[1]}, {k[2]}"/></bsdf>')
 
 
+def folded_conductor():
+    """The importer folds specular_reflectance 0.578596 over aluminium's eta, k into the colour
+    F0 * tint = (0.53696454, 0.531038, 0.5316769) and renders it with Gulbrandsen's eta, k of that
+    colour (its warning); Mitsuba gets the same eta, k in place of the tinted aluminium."""
+    colour = [0.53696454, 0.531038, 0.5316769]
+    eta, k = zip(*[gulbrandsen(c, c) for c in colour])
+    return (f'<rgb name="eta" value="{eta[0]}, {eta[1]}, {eta[2]}"/>'
+            f'<rgb name="k" value="{k[0]}, {k[1]}, {k[2]}"/>')
+
+
+def sun_and_sky(direction, distance, sky, sun):
+    """The substitute for Mitsuba's sunsky, given to both renderers (Mitsuba 3's sunsky is a
+    different sky model from plexus's Preetham and its sun differs in size and spectrum): a
+    constant sky of radiance `sky` and the sun as an emitting sphere of angular radius 1 degree at
+    `distance` along `direction`, of radiance `sun` (black, so it reflects nothing)."""
+    n = math.sqrt(sum(c * c for c in direction))
+    c = [distance * x / n for x in direction]
+    r = distance * math.tan(math.radians(1.0))
+    return (f'<emitter type="constant"><rgb name="radiance" value="{sky}, {sky}, {sky}"/></emitter>'
+            f'<shape type="sphere"><point name="center" x="{c[0]}" y="{c[1]}" z="{c[2]}"/>'
+            f'<float name="radius" value="{r}"/>'
+            '<bsdf type="diffuse"><rgb name="reflectance" value="0, 0, 0"/></bsdf>'
+            f'<emitter type="area"><rgb name="radiance" value="{sun}, {sun}, {sun}"/></emitter></shape>')
+
+
+# Mitsuba-side edits every scene needs, each giving Mitsuba 3 what plexus's importer made of the
+# same XML (its warnings in scenes/imported/NAME.warnings): Beckmann is rendered as GGX of the same
+# alpha, a trilinear texture filter as bilinear (Mitsuba 3 knows only nearest and bilinear), and
+# roughdiffuse as Lambertian (Mitsuba 3 has no roughdiffuse); Mitsuba 0.6's extEta (1 here) and the
+# torus's alpha on smooth BSDFs are properties Mitsuba 3 refuses as unreferenced (plexus ignores them).
+COMMON_SUBS = [
+    (r'name="distribution" value="beckmann"', 'name="distribution" value="ggx"'),
+    (r'value="trilinear"', 'value="bilinear"'),
+    (r'<bsdf type="roughdiffuse"\s*>(.*?)<float name="alpha" value="[^"]*"\s*/>', r'<bsdf type="diffuse">\1'),
+    (r'<float name="ext(Eta|_eta)" value="1"\s*/>', ''),
+    (r'<rfilter type="tent"\s*/>', '<rfilter type="box"/>'),
+]
+FOLD = (r'<rgb name="specularReflectance" value="0.578596, 0.578596, 0.578596"/>\s*'
+        r'<rgb name="eta" value="[^"]*"/>\s*<rgb name="k" value="[^"]*"/>', folded_conductor())
+
 # name: xml, resolution, Mitsuba max_depth (path edges; plexus gets one less: it counts bounces),
-# model tolerance with its reason, substitutions (regex, replacement) applied to the Mitsuba side.
+# model tolerance with its reason, substitutions (regex, replacement) applied to the Mitsuba side
+# only ("subs": what the importer did, given to Mitsuba) or to both ("both": the XML both render,
+# imported into scenes/crosscheck/NAME.toml by --write-scenes, where neither renders the original).
 SCENES = {
     "cornell-box": dict(
         xml="cbox.xml", res=(64, 64), depth=10, tol=0.03,
@@ -71,6 +113,39 @@ SCENES = {
                "(alpha 0.4) of the specular colour with plexus's Gulbrandsen eta/k; 3% covers float "
                "differences of the lamp's narrow highlight and the converted meshes' normals",
         subs=[(r'<bsdf type="ward" id="LampMaterial">.*?</bsdf>', ward_as_conductor())]),
+    "staircase": dict(
+        xml="scene.xml", res=(36, 64), depth=9, tol=0.03,
+        reason="8-bit sRGB textures decoded by OpenImageIO (plexus) and by Mitsuba's own loader, bilinear "
+               "lookups at texel centres, and OBJ normals and uvs read by two loaders",
+        subs=COMMON_SUBS + [FOLD]),
+    "breakfast-room": dict(
+        xml="scene.xml", res=(64, 36), depth=9, tol=0.03,
+        reason="as the staircase (textures read by two loaders); the sunsky is replaced in both by the same "
+               "constant sky and sun sphere",
+        subs=COMMON_SUBS,
+        both=[(r'<emitter type="sunsky">.*?</emitter>',
+               sun_and_sky((0.88698, 0.288862, 0.360313), 1000.0, 1.0, 3000.0))]),
+    "living-room": dict(
+        xml="scene.xml", res=(64, 36), depth=9, tol=0.03,
+        reason="as the staircase (textures, OBJ), and the environment map read and importance-sampled by "
+               "two implementations",
+        subs=COMMON_SUBS + [FOLD]),
+    "veach-ajar": dict(
+        xml="scene_v3.xml", res=(64, 36), depth=9, tol=0.05,
+        reason="the floor is a conductor with a checkerboard specular_reflectance: Mitsuba multiplies "
+               "aluminium's Fresnel curve by the texture, plexus renders the colour F0*texture with "
+               "Gulbrandsen's curve (its warning), which differ towards grazing angles, where the camera "
+               "sees most of the floor",
+        subs=COMMON_SUBS + [(r'<shape type="obj" id="(Pot2_0001|Pot2_0002|Pot3_0001|Pot3_0002|Material_0001|'
+                             r'Material_0002)">.*?</shape>', '')]),
+    "torus": dict(
+        xml="scene.xml", res=(64, 48), depth=9, tol=0.03,
+        reason="smooth glass and metal: caustics on the floor through the torus seen by pt only through "
+               "the sun sphere's BSDF-sampled hits, so the noise is large and the tolerance covers float "
+               "differences of the converted meshes",
+        subs=COMMON_SUBS + [(r'<float name="alpha" value="[^"]*"/>', '')],
+        both=[(r'<emitter type="sunsky">.*?</emitter>',
+               sun_and_sky((0.48457253, -0.3902682, 0.78286666), 5000.0, 1.0, 3000.0))]),
 }
 
 
@@ -84,10 +159,46 @@ def snake(name):
     return out
 
 
+def plexus_scene(name, cfg):
+    """The TOML plexus renders: the committed import of the original XML, or of the substituted
+    XML both renderers get (scenes/crosscheck/NAME.toml, made by --write-scenes)."""
+    folder = "crosscheck" if cfg.get("both") else "imported"
+    return f"scenes/{folder}/{name}.toml"
+
+
+def absolute_filenames(src, scene_dir):
+    return re.sub(r'name="filename" value="([^"]*)"',
+                  lambda m: f'name="filename" value="{os.path.join(scene_dir, m.group(1))}"', src)
+
+
+def shared_source(name, cfg):
+    """The original XML with the substitutes both renderers get."""
+    src = open(os.path.join(SHARED, name, cfg["xml"])).read()
+    for pattern, repl in cfg.get("both", []):
+        src = re.sub(pattern, lambda _m, r=repl: r, src, flags=re.S)
+    return src
+
+
+def write_plexus_scene(name, cfg):
+    """Imports the substituted XML into scenes/crosscheck/NAME.toml (paths relative to it)."""
+    plexus = os.environ.get("PLEXUS", os.path.join(ROOT, "target", "release", "plexus"))
+    out = os.path.join(ROOT, plexus_scene(name, cfg))
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        xml = os.path.join(tmp, cfg["xml"])
+        open(xml, "w").write(absolute_filenames(shared_source(name, cfg), os.path.join(SHARED, name)))
+        subprocess.run([plexus, "import", xml, "--out", out], check=True, stderr=subprocess.DEVNULL)
+    original = f"../shared/scenes/{name}/{cfg['xml']}"
+    text = open(out).read().replace(f"from {xml}", f"from {original} with the substitutes scripts/crosscheck.py "
+                                    "gives both renderers (line numbers are the substituted file's)", 1)
+    text = text.replace(xml, f"{original} (substituted)")
+    open(out, "w").write(text)
+
+
 def mitsuba_xml(name, cfg):
     """The scene's XML made loadable by Mitsuba 3 at the cross-check's settings."""
     scene_dir = os.path.join(SHARED, name)
-    src = open(os.path.join(scene_dir, cfg["xml"])).read()
+    src = shared_source(name, cfg)
     for pattern, repl in cfg["subs"]:
         src = re.sub(pattern, lambda _m, r=repl: r, src, flags=re.S)
     src = re.sub(r'name="(\w+)"', lambda m: f'name="{snake(m.group(1))}"', src)
@@ -116,9 +227,7 @@ def mitsuba_xml(name, cfg):
         return re.sub(r'<integer name="shape_index" value="\d+"\s*/>', "", block)
 
     src = re.sub(r'<shape type="serialized".*?</shape>', serialized, src, flags=re.S)
-    src = re.sub(r'name="filename" value="([^"]*)"',
-                 lambda m: f'name="filename" value="{os.path.join(scene_dir, m.group(1))}"', src)
-    return src
+    return absolute_filenames(src, scene_dir)
 
 
 def luminance(img):
@@ -156,7 +265,7 @@ def render_plexus(name, cfg, spp, renders, plexus_depth=None):
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(renders):
             out = os.path.join(tmp, f"{k}.exr")
-            subprocess.run([plexus, "reference", os.path.join(ROOT, "scenes", "imported", f"{name}.toml"),
+            subprocess.run([plexus, "reference", os.path.join(ROOT, plexus_scene(name, cfg)),
                             "--integrator", "pt", "--spp", str(spp), "--seed", str(7919 * (k + 1)),
                             "--resolution", f"{w}x{h}", "--set", f"max_depth={plexus_depth or cfg['depth'] - 1}",
                             "--out", out], check=True, stderr=subprocess.DEVNULL)
@@ -188,6 +297,8 @@ def main():
     ap.add_argument("--renders", type=int, default=8)
     ap.add_argument("--variant", default="scalar_rgb")
     ap.add_argument("--write-references", action="store_true")
+    ap.add_argument("--write-scenes", action="store_true",
+                    help="(re)import scenes/crosscheck/NAME.toml for scenes whose substitutes both renderers get")
     ap.add_argument("--wrong-variant", action="store_true",
                     help="also compare plexus rendered at half the depth, which must fail")
     args = ap.parse_args()
@@ -198,6 +309,8 @@ def main():
     all_ok = True
     for name in args.scenes.split(","):
         cfg = SCENES[name]
+        if args.write_scenes and cfg.get("both"):
+            write_plexus_scene(name, cfg)
         m_imgs = render_mitsuba(mi, mitsuba_xml(name, cfg), args.spp, args.renders)
         mm, mse = stats(m_imgs)
         pm, pse = stats(render_plexus(name, cfg, args.spp, args.renders))
@@ -213,7 +326,7 @@ def main():
             mi.Bitmap(mean_img).write(base + ".exr")
             w, h = cfg["res"]
             json.dump({
-                "scene": f"scenes/imported/{name}.toml",
+                "scene": plexus_scene(name, cfg),
                 "source": f"../shared/scenes/{name}/{cfg['xml']}",
                 "renderer": f"Mitsuba {mi.MI_VERSION} ({args.variant}), integrator path",
                 "mitsuba_max_depth": cfg["depth"], "plexus_max_depth": cfg["depth"] - 1,
@@ -221,7 +334,8 @@ def main():
                 "seeds": [1000 + k for k in range(args.renders)],
                 "grid": GRID, "region_means": list(mm), "region_std_errors": list(mse),
                 "tolerance": cfg["tol"], "tolerance_reason": cfg["reason"],
-                "substitutions": [p for p, _ in cfg["subs"]],
+                "substitutions_mitsuba": [p for p, _ in cfg["subs"]],
+                "substitutions_both": [{"pattern": p, "replacement": r} for p, r in cfg.get("both", [])],
                 "made_by": "scripts/crosscheck.py --write-references",
             }, open(base + ".json", "w"), indent=1)
     sys.exit(0 if all_ok else 1)

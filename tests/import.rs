@@ -1,18 +1,21 @@
 //! The seven Mitsuba scenes of ../shared/scenes (beside the repository): each imports to exactly the
 //! TOML committed in scenes/imported/ (so the committed files are what `plexus import` writes
 //! today), with the warnings committed beside it, and each committed TOML loads with the ordinary
-//! loader (every mesh and texture found through its relative paths). `plexus render SCENE.xml`
-//! renders a Mitsuba file directly.
+//! loader (every mesh and texture found through its relative paths) and renders with `pt`, `bdpt`
+//! and `mmlt` (a smoke check: a tiny image, finite and not black, for each). `plexus render
+//! SCENE.xml` renders a Mitsuba file directly.
 //!
 //! The scene data is not part of the repository: without ../shared/scenes these tests fail with a
 //! message saying so, never skip.
 
 use std::path::{Path, PathBuf};
 
+use plexus::metrics::converge::camera_at_resolution;
 use plexus::scene::import::{import_mitsuba, ImportOptions};
 use plexus::scene::load_scene;
 
 mod common;
+use common::agreement::render_regions;
 use common::binary::{plexus, stderr, temp_dir};
 
 /// (name, XML file, leave out missing meshes): the list scripts/import-scenes.sh imports.
@@ -65,8 +68,31 @@ fn import_and_load(name: &str) {
     for line in imported.warnings.lines() {
         assert!(warnings.contains(&line), "{name}: warning not recorded in {name}.warnings: {line}");
     }
-    let loaded = load_scene(Path::new(&committed_path), None).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let mut loaded = load_scene(Path::new(&committed_path), None).unwrap_or_else(|e| panic!("{name}: {e}"));
     assert!(!loaded.scene.lights.is_empty() && loaded.scene.triangle_count() > 0, "{name}");
+    smoke_render(name, &mut loaded.scene);
+}
+
+/// Renders `scene` with pt, bdpt and mmlt at about 24 pixels on the long side (the scene's
+/// aspect ratio), a few samples (mutations) per pixel: every region mean must be finite and the
+/// image not black. A smoke check that each integrator runs on the scene's features (textures,
+/// masks, two-sided and rough dielectric materials, environment maps, emitting meshes); agreement is
+/// tests/crosscheck.rs's business.
+fn smoke_render(name: &str, scene: &mut plexus::scene::Scene) {
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let g = (1..=w.min(h)).rev().find(|d| w % d == 0 && h % d == 0).unwrap_or(1);
+    let (bw, bh) = (w / g, h / g);
+    let k = 24u32.div_ceil(bw.max(bh)).max(1);
+    scene.camera = camera_at_resolution(&scene.camera, bw * k, bh * k).expect("resolution");
+    for (integrator, params) in
+        [("pt", "max_depth = 8"), ("bdpt", "max_depth = 8"), ("mmlt", "max_depth = 8\nbootstrap = 20000\nchains = 64")]
+    {
+        let r = &render_regions(scene, integrator, params, 4, 0, 1)[0];
+        assert!(
+            r.iter().all(|m| m.is_finite()) && *r.last().expect("image mean") > 0.0,
+            "{name} with {integrator}: region means {r:?}"
+        );
+    }
 }
 
 #[test]

@@ -151,7 +151,7 @@ impl<'a> Materials<'a> {
             );
         }
         for p in o.unused() {
-            w.warn(&p.loc, format!("parameter '{}' of {} is not supported and was ignored", p.name, o.describe()));
+            w.warn(&p.loc, format!("{} of {} is not supported and was ignored", p.describe(), o.describe()));
         }
         Ok(())
     }

@@ -56,6 +56,8 @@ pub struct Obj {
 pub struct Objects {
     pub top: Vec<Rc<Obj>>,
     ids: HashMap<String, Rc<Obj>>,
+    /// Ids of the objects being built (the enclosing elements), to refuse a ref to one of them.
+    building: Vec<String>,
 }
 
 const OBJECT_TAGS: &[&str] = &[
@@ -76,7 +78,7 @@ const OBJECT_TAGS: &[&str] = &[
 
 impl Objects {
     pub fn build(root: &Element) -> Result<Objects, ImportError> {
-        let mut objects = Objects { top: Vec::new(), ids: HashMap::new() };
+        let mut objects = Objects { top: Vec::new(), ids: HashMap::new(), building: Vec::new() };
         for child in &root.children {
             if OBJECT_TAGS.contains(&child.tag.as_str()) {
                 let obj = objects.object(child)?;
@@ -108,9 +110,22 @@ impl Objects {
         if plugin.is_empty() {
             return Err(ImportError::at(&e.loc, format!("<{}> needs a 'type' attribute", e.tag)));
         }
+        let id = e.attr("id").map(str::to_string);
+        if let Some(id) = &id {
+            if let Some(first) = self.ids.get(id) {
+                return Err(ImportError::at(
+                    &e.loc,
+                    format!("id '{id}' is defined twice (first at {}:{})", first.loc.file, first.loc.line),
+                ));
+            }
+            self.building.push(id.clone());
+        }
         let mut props = Vec::new();
         for c in &e.children {
             props.push(self.prop(c)?);
+        }
+        if id.is_some() {
+            self.building.pop();
         }
         let obj = Rc::new(Obj {
             class: e.tag.clone(),
@@ -168,11 +183,40 @@ impl Objects {
                 }
             }
             "transform" => Value::Transform(super::transform::parse(e)?),
-            "ref" => Value::Ref(attr("id")?.to_string()),
+            "ref" => {
+                // Mitsuba resolves a ref to an object defined before it; a ref to an enclosing
+                // object would be a cycle (and endless recursion when converting it).
+                let id = attr("id")?;
+                if self.building.iter().any(|b| b == id) {
+                    return Err(ImportError::at(
+                        &e.loc,
+                        format!("<ref id=\"{id}\"> is inside the object it names: a reference cycle"),
+                    ));
+                }
+                if !self.ids.contains_key(id) {
+                    return Err(ImportError::at(
+                        &e.loc,
+                        format!("<ref id=\"{id}\"> names no object defined before it in the scene"),
+                    ));
+                }
+                Value::Ref(id.to_string())
+            }
             t if OBJECT_TAGS.contains(&t) => Value::Object(self.object(e)?),
             other => return Err(ImportError::at(&e.loc, format!("unsupported element <{other}>"))),
         };
         Ok(Prop { name, value, loc: e.loc.clone(), used: Cell::new(false) })
+    }
+}
+
+impl Prop {
+    /// What the parameter is, for "ignored" warnings: `parameter 'name'`, or the nested object
+    /// (inline or by ref), which has no name.
+    pub fn describe(&self) -> String {
+        match (&self.value, self.name.is_empty()) {
+            (Value::Object(o), true) => format!("nested {}", o.describe()),
+            (Value::Ref(id), true) => format!("<ref id=\"{id}\">"),
+            _ => format!("parameter '{}'", self.name),
+        }
     }
 }
 

@@ -89,7 +89,7 @@ pub fn convert(
 /// Warns about every parameter of `obj` (and of nested helper objects) that nobody used.
 fn report_unused(obj: &Obj, w: &mut Warnings) {
     for p in obj.unused() {
-        w.warn(&p.loc, format!("parameter '{}' of {} is not supported and was ignored", p.name, obj.describe()));
+        w.warn(&p.loc, format!("{} of {} is not supported and was ignored", p.describe(), obj.describe()));
     }
 }
 
@@ -460,9 +460,11 @@ fn emitter(e: &Rc<Obj>, toml_dir: &Path, w: &mut Warnings) -> Result<Option<Sect
                 Some((m, loc)) => (DMat3::from_mat4(m), Some(loc)),
                 None => (DMat3::IDENTITY, None),
             };
-            // Mitsuba looks up u = atan2(x, -z)/2π + 1/2 in the map's frame, plexus
-            // u = atan2(z, x)/2π: the two frames differ by a rotation of 90° about y, so plexus's
-            // `rotate` is to_world · R_y(-90°) (applied first: R_y(-90°), then to_world).
+            // Mitsuba (0.6 and 3, envmap.cpp) looks up u = atan2(x, -z)/2π (mod 1) in the map's
+            // frame, plexus u = atan2(z, x)/2π: Mitsuba's azimuth is plexus's plus 90°, which
+            // R_y(+90°) (glam's, turning atan2(z, x) by -90°) undoes, so plexus's `rotate` is
+            // to_world · R_y(90°) (applied first: R_y(90°), then to_world). Checked against Mitsuba
+            // 3's renders of the living room's sky in scripts/crosscheck.py.
             let det = rot.determinant();
             let ortho = (rot.transpose() * rot - DMat3::IDENTITY).to_cols_array().iter().all(|v| v.abs() < 1e-4);
             let rot = if det > 0.0 && ortho {
@@ -473,7 +475,7 @@ fn emitter(e: &Rc<Obj>, toml_dir: &Path, w: &mut Warnings) -> Result<Option<Sect
                 }
                 orthonormalise(rot)
             };
-            let total = rot * DMat3::from_rotation_y(-std::f64::consts::FRAC_PI_2);
+            let total = rot * DMat3::from_rotation_y(std::f64::consts::FRAC_PI_2);
             let q = DQuat::from_mat3(&total);
             let (axis, angle) = q.to_axis_angle();
             // Below a thousandth of a degree the rotation is rounding (the 4.4e-8 of a written cos 90°).

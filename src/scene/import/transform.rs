@@ -70,12 +70,29 @@ fn operation(e: &Element) -> Result<DMat4, ImportError> {
         "matrix" => {
             let v = e.attr("value").ok_or_else(|| ImportError::at(&e.loc, "<matrix> needs a 'value'"))?;
             let n = parse_list(v, &e.loc)?;
-            match n.len() {
+            let m = match n.len() {
                 // Row-major, points are column vectors.
-                16 => DMat4::from_cols_slice(&n).transpose(),
+                16 => {
+                    // Mitsuba accepts any 4×4 matrix; plexus's shapes and cameras need an affine
+                    // one (a projective bottom row would bend lines through the w divide).
+                    if n[12..] != [0.0, 0.0, 0.0, 1.0] {
+                        return Err(ImportError::at(
+                            &e.loc,
+                            format!(
+                                "<matrix> has the bottom row ({}, {}, {}, {}): only affine transforms (0, 0, 0, 1) are supported",
+                                n[12], n[13], n[14], n[15]
+                            ),
+                        ));
+                    }
+                    DMat4::from_cols_slice(&n).transpose()
+                }
                 9 => DMat4::from_mat3(DMat3::from_cols_slice(&n).transpose()),
                 k => return Err(ImportError::at(&e.loc, format!("<matrix> expects 16 (or 9) numbers, got {k}"))),
+            };
+            if m.determinant() == 0.0 {
+                return Err(ImportError::at(&e.loc, "the <matrix> is singular (determinant 0)"));
             }
+            m
         }
         "lookat" => {
             let origin = point(e, "origin")?.ok_or_else(|| ImportError::at(&e.loc, "<lookat> needs 'origin'"))?;
