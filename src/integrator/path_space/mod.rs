@@ -33,6 +33,7 @@ pub mod chain;
 pub mod contribution;
 pub mod density;
 pub mod kernel;
+pub mod retrace;
 pub mod session;
 pub mod settings;
 pub mod state;
