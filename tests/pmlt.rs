@@ -1,4 +1,4 @@
-//! Path-space MLT (`integrator = "pmlt"`, the bidirectional mutation) against the path tracer, and
+//! Path-space MLT (`integrator = "pmlt"`, the bidirectional mutation and the perturbations) against the path tracer, and
 //! its determinism and black-scene behaviour. The transition density and the path-length shares are
 //! tested inside the library (`integrator::path_space::tests`), where the wrong variants can be
 //! switched on.
@@ -10,13 +10,14 @@
 //! path-traced renders, by Welch's z with |z| < 5 and a power check (a 10% error of any region's
 //! share holding at least a quarter of the average share must reach |z| = 5); the **brightness**
 //! (image mean, with a 5% power check) tests b, which pmlt takes from its BDPT bootstrap alone.
-//! 64 chains of 8,192 mutations each (512 per pixel of 32×32), so that the chains' stationary
-//! distribution, not the resampled bootstrap they start from, makes the image; the path tracer at
-//! 1024 spp. Measured (2026-12-02, all six tests 494 s on the shared machine at load ~13):
-//! cornell-box shares worst |z| = 2.19, brightness z = −0.38 (relative standard error 0.0061);
-//! cornell-glossy worst |z| = 2.30; the bidirectional mutation accepted 19.2% (box) and 18.9%
-//! (glossy) of its proposals. **Wrong chain**: with the addition-length probability left out of T
-//! (the furnace test's wrong variant) the box's shares fail at |z| = 101.4 (asserted).
+//! 64 chains, 768 mutations per pixel of 32×32 (all strategies: bidirectional + lens here), so that
+//! the chains' stationary distribution, not the resampled bootstrap they start from, makes the
+//! image; the path tracer at 1024 spp. Measured (2026-12-02, this file 1025 s with 3 test threads on
+//! the shared machine at load ~13, over issues 13+14's budget): cornell-box shares worst |z| = 1.41,
+//! brightness z = −3.21 (relative standard error 0.0095); cornell-glossy worst |z| = 2.46;
+//! acceptance bidirectional 19.1% / lens 64.8% (box), 18.5% / 63.3% (glossy). **Wrong chain**: with
+//! the addition-length probability left out of the bidirectional T the box's shares fail at
+//! |z| = 111.3 (asserted). The glass scene's test is ignored (its power check fails, see there).
 
 use std::path::Path;
 
@@ -49,97 +50,123 @@ fn render(scene: &Scene, params: &str, mpp: u64, seed: u64, threads: usize) -> (
     (out.image, out.extra_stats)
 }
 
-/// The settings of one scene's agreement test.
-struct Agreement {
-    name: &'static str,
-    /// pmlt's `[integrator]` table.
-    params: &'static str,
-    /// Mutations per pixel of the 32×32 renders.
-    mutations_per_pixel: u64,
-    /// The path tracer's samples per pixel.
-    pt_spp: u64,
-    /// Whether to test the brightness (b) too.
-    brightness: bool,
-    /// Whether to show that a chain with a deliberately wrong T fails the same share test.
-    wrong_variant: bool,
-}
+/// One pmlt configuration of an agreement test: its label and its `[integrator]` table.
+type Config = (&'static str, &'static str);
 
-/// The region means of 16 renders by `pmlt` with the addition-length probability left out of the
-/// bidirectional mutation's T (the furnace test's wrong variant), seeds as `render_regions`.
-fn wrong_t_regions(scene: &Scene, params: &str, mpp: u64) -> Vec<Vec<f64>> {
-    let table: toml::Table = toml::from_str(params).expect("test parameters");
-    let mut pmlt = Pmlt::from_params(&table).expect("settings");
-    pmlt.bidirectional = Bidirectional { omit_addition_pmf: true, ..Bidirectional::default() };
-    (1..=RENDERS)
+/// The region means of `RENDERS` independent pmlt renders (seeds as `render_regions`), each
+/// finite and dropping nothing, and the first render's statistics (so the acceptance figures cost no
+/// extra render).
+fn pmlt_regions(scene: &Scene, pmlt: &Pmlt, mpp: u64) -> (Vec<Vec<f64>>, serde_json::Value) {
+    let mut stats = serde_json::Value::Null;
+    let regions = (1..=RENDERS)
         .map(|k| {
             let job = RenderJob { budget: Budget::SamplesPerPixel(mpp), seed: k * 7919 + 3, threads: 2 };
-            region_means(&pmlt.render(scene, &job, &NoProgress).expect("render").image)
+            let out = pmlt.render(scene, &job, &NoProgress).expect("render");
+            assert!(out.image.all_finite(), "pmlt: non-finite pixels");
+            assert_eq!(out.counters.nonfinite_dropped, 0, "pmlt: non-finite contributions");
+            if k == 1 {
+                stats = out.extra_stats;
+            }
+            region_means(&out.image)
         })
-        .collect()
+        .collect();
+    (regions, stats)
 }
 
-/// pmlt's region shares (and, where asked, brightness) against the path tracer's at 32×32.
-fn pmlt_agrees_with_pt(a: Agreement) {
-    let scene = scene(a.name, 32);
-    let reference = render_regions(&scene, "pt", "max_depth = 8", a.pt_spp, 3, RENDERS);
-    let (params, mpp) = (a.params, a.mutations_per_pixel);
-    let renders = render_regions(&scene, "pmlt", params, mpp, 3, RENDERS);
-    let what = format!("pmlt vs pt on {}", a.name);
-    assert_shares_agree(&what, &renders, &reference);
-    if a.brightness {
-        assert_brightness_agrees(&what, &renders, &reference);
-    }
-    let (_, stats) = render(&scene, params, 64, 1, 2);
-    println!("{what}: bidirectional mutation {}", stats["strategies"][0]);
-    if a.wrong_variant {
-        let wrong = share_agreement(&wrong_t_regions(&scene, params, mpp / 2), &reference);
-        println!("{what}, T without p_a: worst |z| = {:.2}\n{}", wrong.worst_z, wrong.report());
-        assert!(wrong.worst_z >= Z_CRITICAL, "a wrong T passed the share test: |z| = {:.2}", wrong.worst_z);
-    }
+fn pmlt_with(params: &str) -> Pmlt {
+    let table: toml::Table = toml::from_str(params).expect("test parameters");
+    Pmlt::from_params(&table).expect("settings")
 }
 
+/// Each configuration's region shares against one set of path-traced renders of `name` at
+/// `SIZE`×`SIZE`, with the power check (`assert_shares_agree`); prints each strategy's
+/// acceptance. Returns the scene, the path tracer's region means and the last configuration's
+/// (for the brightness and wrong-variant checks, which reuse them).
+fn pmlt_agrees_with(
+    name: &str,
+    configs: &[Config],
+    mpp: u64,
+    (reference_integrator, spp): (&str, u64),
+) -> (Scene, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let scene = scene(name, SIZE);
+    let reference = render_regions(&scene, reference_integrator, "max_depth = 8", spp, 3, RENDERS);
+    let mut last = Vec::new();
+    for (label, params) in configs {
+        let (renders, stats) = pmlt_regions(&scene, &pmlt_with(params), mpp);
+        let what = format!("pmlt ({label}) vs {reference_integrator} on {name}");
+        assert_shares_agree(&what, &renders, &reference);
+        for s in stats["strategies"].as_array().into_iter().flatten() {
+            println!(
+                "{what}: {} selected {} accepted {} (acceptance {:.3})",
+                s["name"], s["selected"], s["accepted"], s["acceptance"]
+            );
+        }
+        last = renders;
+    }
+    (scene, reference, last)
+}
+
+/// Image side of the agreement renders: 4×4 regions of 8×8 pixels. (At 16×16 with 512 mutations
+/// per pixel the power check failed: a 10% share error would reach only |z| = 2.4 in the box's
+/// region 9; the share's noise depends on the mutations per render, not on the pixels.)
+const SIZE: u32 = 32;
+/// The strategies of the agreement tests: the bidirectional mutation with each perturbation alone,
+/// and all of them (the defaults).
+const LENS: Config =
+    ("bidirectional + lens", "max_depth = 8\nbootstrap = 20000\nchains = 64\ncaustic = 0\nmulti_chain = 0");
+const CAUSTIC: Config =
+    ("bidirectional + caustic", "max_depth = 8\nbootstrap = 20000\nchains = 64\nlens = 0\nmulti_chain = 0");
+const MULTI_CHAIN: Config =
+    ("bidirectional + multi-chain", "max_depth = 8\nbootstrap = 20000\nchains = 64\nlens = 0\ncaustic = 0");
+const ALL: Config = ("all strategies", "max_depth = 8\nbootstrap = 20000\nchains = 64");
+
+/// The Cornell box: no specular vertex, so the caustic and multi-chain perturbations are never
+/// suitable and "all" is the bidirectional mutation with the lens perturbation; the brightness (b)
+/// is tested too. Wrong chain: with the addition-length probability left out of the bidirectional
+/// mutation's T (the furnace test's wrong variant) the shares must fail.
 #[test]
 fn pmlt_agrees_with_pt_on_cornell_box() {
-    pmlt_agrees_with_pt(Agreement {
-        name: "cornell-box",
-        params: "max_depth = 8\nbootstrap = 50000\nchains = 64",
-        mutations_per_pixel: 512,
-        pt_spp: 1024,
-        brightness: true,
-        wrong_variant: true,
-    });
+    let (scene, reference, right) = pmlt_agrees_with("cornell-box", &[ALL], 768, ("pt", 1024));
+    assert_brightness_agrees("pmlt vs pt on cornell-box", &right, &reference);
+    let mut wrong = pmlt_with(ALL.1);
+    wrong.settings.lens = 0.0;
+    wrong.bidirectional = Bidirectional { omit_addition_pmf: true, ..Bidirectional::default() };
+    let (renders, _) = pmlt_regions(&scene, &wrong, 256);
+    let a = share_agreement(&renders, &reference);
+    println!("pmlt vs pt on cornell-box, T without p_a: worst |z| = {:.2}\n{}", a.worst_z, a.report());
+    assert!(a.worst_z >= Z_CRITICAL, "a wrong T passed the share test: |z| = {:.2}", a.worst_z);
 }
 
+/// The glossy Cornell box (a rough gold conductor): the lens perturbation reconnects at glossy
+/// vertices too.
 #[test]
 fn pmlt_agrees_with_pt_on_cornell_glossy() {
-    pmlt_agrees_with_pt(Agreement {
-        name: "cornell-glossy",
-        params: "max_depth = 8\nbootstrap = 10000\nchains = 64",
-        mutations_per_pixel: 512,
-        pt_spp: 1024,
-        brightness: false,
-        wrong_variant: false,
-    });
+    pmlt_agrees_with("cornell-glossy", &[ALL], 768, ("pt", 1024));
 }
 
-/// Not run by default: the share test's power check fails in region 14 (the glass sphere seen
-/// directly, camera → S → S → D → L paths), where the bidirectional mutation alone moves the chain
-/// only by regenerating the whole specular chain from a new film position. Measured (2026-12-02):
-/// 256 chains, 1024 mutations per pixel, pt at 1024 spp: worst |z| = 1.72 (the shares agree), but a
-/// 10% error of region 14's share would reach only |z| = 3.0 (5 needed); 8 chains at 256: 0.6, 64
-/// chains at 256: 2.2. Reaching 5 needs about 3× these mutations, beyond this issue's test budget;
-/// issue 14's lens and caustic perturbations are the strategies for these paths.
+/// The glass Cornell box with all strategies: the glass sphere seen directly (E S S D L, the lens
+/// perturbation's retrace), the caustic on the floor (E D S S L, the caustic perturbation) and
+/// caustics seen through the sphere (E S S D S S L, the multi-chain perturbation). The reference
+/// is BDPT (tested against the path tracer in tests/bdpt.rs), whose light-tracing techniques see
+/// the floor caustic with far less variance than the path tracer, which would otherwise dominate
+/// the share test's noise in the sphere's regions.
+///
+/// Not run by default: the shares agree but the power check fails. Measured (2026-12-02, 32×32, 64
+/// chains × 1024 mutations per pixel, BDPT 256 spp): worst |z| = 1.84, but a 10% share error would
+/// reach only |z| = 3.0 in region 10 and 2.1 in region 14 (the sphere), 5 needed; about 6× the
+/// mutations (or a less noisy reference) would be needed, beyond the test budget.
 #[test]
-#[ignore = "power check fails in the glass sphere's region with the bidirectional mutation alone (see doc comment)"]
-fn pmlt_agrees_with_pt_on_cornell_glass() {
-    pmlt_agrees_with_pt(Agreement {
-        name: "cornell-glass",
-        params: "max_depth = 8\nbootstrap = 10000\nchains = 256",
-        mutations_per_pixel: 1024,
-        pt_spp: 1024,
-        brightness: false,
-        wrong_variant: false,
-    });
+#[ignore = "power check fails in the sphere's regions 10 and 14 at this budget (see doc comment)"]
+fn pmlt_agrees_with_bdpt_on_cornell_glass() {
+    pmlt_agrees_with("cornell-glass", &[ALL], 1024, ("bdpt", 256));
+}
+
+/// Each perturbation alone with the bidirectional mutation on the glass box (as above). Not run by
+/// default: three more sets of 16 renders, beyond issues 13 and 14's test budget.
+#[test]
+#[ignore = "three more sets of 16 renders: beyond the test budget (run with --ignored)"]
+fn pmlt_each_perturbation_agrees_with_bdpt_on_cornell_glass() {
+    pmlt_agrees_with("cornell-glass", &[LENS, CAUSTIC, MULTI_CHAIN], 1024, ("bdpt", 256));
 }
 
 /// Same seed and thread count: the same bits; another thread count too (chains are the driver's

@@ -21,9 +21,13 @@
 //! image depends on the seed and the chain count only (not on the threads).
 
 use super::bidirectional::{Bidirectional, LengthKernel};
+use super::caustic::{Caustic, CausticKernel};
+use super::kernel::RasterKernel;
+use super::lens::Lens;
+use super::multichain::{MultiChain, MultiChainKernel};
 use super::settings::PmltSettings;
 use super::state::PathState;
-use super::strategy::{Entry, StrategySet};
+use super::strategy::{Entry, Mutation, StrategySet};
 use super::PathContext;
 use serde::{Deserialize, Serialize};
 
@@ -54,6 +58,9 @@ pub struct Pmlt {
     pub settings: PmltSettings,
     /// The bidirectional mutation (a value, so that tests can render with a deliberately wrong one).
     pub bidirectional: Bidirectional,
+    /// The lens and caustic perturbations (values for the same reason).
+    pub lens: Lens,
+    pub caustic: Caustic,
 }
 
 /// A chain: its own stream and its current path (with its f and f*), all of which a state saves
@@ -178,18 +185,34 @@ fn splat(path: &PathState, w: f64, film: &mut SplatBuffer) {
 
 impl Pmlt {
     pub fn from_params(params: &toml::Table) -> Result<Pmlt, RenderError> {
-        Ok(Pmlt { settings: PmltSettings::from_params(params)?, bidirectional: Bidirectional::default() })
+        Ok(Pmlt {
+            settings: PmltSettings::from_params(params)?,
+            bidirectional: Bidirectional::default(),
+            lens: Lens::default(),
+            caustic: Caustic::default(),
+        })
     }
 
-    /// The strategies of the chain (the bidirectional mutation alone, for now).
-    pub fn strategies(&self) -> StrategySet {
-        StrategySet {
-            entries: vec![Box::new(Entry {
-                strategy: self.bidirectional,
-                kernel: LengthKernel,
-                weight: self.settings.bidirectional,
-            })],
+    /// The strategies of the chain for `scene` (its film sets the lens kernel's range): the
+    /// bidirectional mutation and Veach's perturbations, in the statistics' order. A weight of 0
+    /// leaves a strategy out.
+    pub fn strategies(&self, scene: &Scene) -> StrategySet {
+        let s = &self.settings;
+        let lens = RasterKernel::veach(scene.camera.width, scene.camera.height);
+        let mut entries: Vec<Box<dyn Mutation>> =
+            vec![Box::new(Entry { strategy: self.bidirectional, kernel: LengthKernel, weight: s.bidirectional })];
+        if s.lens > 0.0 {
+            entries.push(Box::new(Entry { strategy: self.lens, kernel: lens, weight: s.lens }));
         }
+        if s.caustic > 0.0 {
+            let kernel = CausticKernel::from_lens(&lens, &scene.camera);
+            entries.push(Box::new(Entry { strategy: self.caustic, kernel, weight: s.caustic }));
+        }
+        if s.multi_chain > 0.0 {
+            let kernel = MultiChainKernel::new(lens);
+            entries.push(Box::new(Entry { strategy: MultiChain, kernel, weight: s.multi_chain }));
+        }
+        StrategySet { entries }
     }
 
     pub(super) fn bdpt_context<'a>(&self, scene: &'a Scene) -> BdptContext<'a> {

@@ -1,9 +1,11 @@
 //! Path-space Metropolis light transport (Veach & Guibas 1997; the portal paper's Sec. 3 and the
 //! ensemble paper's Sec. 2.3 summarise it): Markov chains whose state is a light path itself,
 //! mutated vertex by vertex. `integrator = "pmlt"` runs many such chains started from a BDPT
-//! bootstrap (`chain`); the bidirectional mutation (`bidirectional`) is its first strategy, and
-//! Veach's perturbations (issue 14), the portal perturbation (issue 15) and the ensemble-guided
-//! kernels (issue 16) are further strategies on the same chain (`strategy`).
+//! bootstrap (`chain`); the bidirectional mutation (`bidirectional`) is its global strategy, Veach's
+//! lens, caustic and multi-chain perturbations (`lens`, `caustic`, `multichain`, with the truncated
+//! reciprocal kernels of `kernel` and the specular-chain retrace of `retrace`) its local ones, and
+//! the portal perturbation (issue 15) and the ensemble-guided kernels (issue 16) are further
+//! strategies on the same chain (`strategy`).
 //!
 //! # State
 //! A path x̄ = x_0 … x_{n−1} is its vertex list, pinhole first and emitter last (`state`): each
@@ -29,9 +31,16 @@
 //! proposal of every strategy: there is one f.
 
 pub mod bidirectional;
+pub mod caustic;
 pub mod chain;
 pub mod contribution;
 pub mod density;
+pub mod kernel;
+pub mod lens;
+pub mod multichain;
+#[cfg(test)]
+mod perturb_tests;
+pub mod retrace;
 pub mod session;
 pub mod settings;
 pub mod state;
@@ -40,6 +49,7 @@ pub mod strategy;
 mod tests;
 
 pub use chain::{Pmlt, PmltRun};
+pub use kernel::{DirectionKernel, RasterKernel};
 pub use settings::PmltSettings;
 pub use state::{Interaction, PathState, PathVertex};
 pub use strategy::{Entry, Mutation, Strategy, StrategySet};

@@ -130,7 +130,7 @@ impl Pmlt {
         let max_depth = self.settings.max_depth as usize;
         let ctx = PathContext { scene, max_depth };
         let bctx = self.bdpt_context(scene);
-        let set = self.strategies();
+        let set = self.strategies(scene);
         // Budget: one pass is about one mutation per pixel over all chains.
         let segment = pixels.div_ceil(self.settings.chains).max(1);
         let per_pass = segment * self.settings.chains;

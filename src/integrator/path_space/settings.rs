@@ -20,14 +20,30 @@ pub struct PmltSettings {
     pub chains: u64,
     /// MIS heuristic of the bootstrap's BDPT weights (the start paths are resampled ∝ w·f/p).
     pub mis: MisHeuristic,
-    /// Selection weight of the bidirectional mutation (renormalised over the suitable strategies;
-    /// the only strategy until issue 14 adds Veach's perturbations).
+    /// Selection weight of the bidirectional mutation (1; renormalised over the suitable
+    /// strategies, `strategy` module docs). Positive: it is what makes the chain ergodic.
     pub bidirectional: f64,
+    /// Selection weights of the perturbations (2 each; 0 turns one off). A perturbation's weight
+    /// is shared equally among the perturbations suitable at the path, so the defaults give the
+    /// bidirectional mutation 1/3 and the suitable perturbations 2/3 between them (the ensemble
+    /// paper's setting).
+    pub lens: f64,
+    pub caustic: f64,
+    pub multi_chain: f64,
 }
 
 impl Default for PmltSettings {
     fn default() -> Self {
-        PmltSettings { max_depth: 8, bootstrap: 100_000, chains: 1000, mis: MisHeuristic::Balance, bidirectional: 1.0 }
+        PmltSettings {
+            max_depth: 8,
+            bootstrap: 100_000,
+            chains: 1000,
+            mis: MisHeuristic::Balance,
+            bidirectional: 1.0,
+            lens: 2.0,
+            caustic: 2.0,
+            multi_chain: 2.0,
+        }
     }
 }
 
@@ -51,9 +67,15 @@ impl PmltSettings {
         }
         if !(settings.bidirectional > 0.0 && settings.bidirectional.is_finite()) {
             return bad(format!(
-                "bidirectional = {}: expected a positive weight (the only strategy so far)",
+                "bidirectional = {}: expected a positive weight (it makes the chain ergodic)",
                 settings.bidirectional
             ));
+        }
+        for (name, w) in [("lens", settings.lens), ("caustic", settings.caustic), ("multi_chain", settings.multi_chain)]
+        {
+            if !(w >= 0.0 && w.is_finite()) {
+                return bad(format!("{name} = {w}: expected a weight >= 0 (0 turns the perturbation off)"));
+            }
         }
         Ok(settings)
     }
@@ -75,6 +97,9 @@ mod tests {
             ("bootstrap = 0", "bootstrap"),
             ("mis = \"none\"", "mis"),
             ("bidirectional = 0.0", "bidirectional"),
+            ("lens = -1.0", "lens"),
+            ("caustic = nan", "caustic"),
+            ("multi_chain = inf", "multi_chain"),
             ("large_step_probability = 0.3", "large_step_probability"),
         ] {
             let t: toml::Table = toml::from_str(bad).expect("toml");

@@ -9,9 +9,12 @@
 //! bidirectional mutation; direction, lens or stretch kernels for the perturbations of issues
 //! 14–16) is a separate value, handed to both.
 //!
-//! Selection: strategy i has a weight w_i; at path x̄ it is chosen with probability
-//! P_i(x̄) = w_i / Σ_{j suitable at x̄} w_j, renormalised over the strategies suitable for x̄ (the
-//! portal paper, Sec. 4.5). P_i enters the acceptance both ways,
+//! Selection: strategy i has a weight w_i; at path x̄ its effective weight is w_i, or, for a
+//! perturbation, w_i / m(x̄) with m(x̄) the number of perturbations suitable at x̄ (so that with
+//! equal weights the perturbations split their share equally among the suitable ones, the ensemble
+//! paper's setting: bidirectional 1/3, perturbations 2/3), and it is chosen with probability
+//! P_i(x̄) = w_i(x̄) / Σ_{j suitable at x̄} w_j(x̄), renormalised over the strategies suitable for x̄
+//! (the portal paper, Sec. 4.5). P_i enters the acceptance both ways,
 //!   a = min(1, f*(ȳ) P_i(ȳ) T_i(ȳ→x̄) / (f*(x̄) P_i(x̄) T_i(x̄→ȳ))),
 //! since the reverse move must choose the same strategy at ȳ, whose suitable set may differ.
 
@@ -37,6 +40,13 @@ pub trait Strategy: Send + Sync {
 
     /// Whether the strategy can produce a change of `path` (and so is offered at it).
     fn suitable(&self, ctx: &PathContext, path: &PathState) -> bool;
+
+    /// Whether the strategy is a perturbation: perturbations share their weight equally among
+    /// those suitable at a path (the module docs, "Selection"); other strategies (the
+    /// bidirectional mutation) keep theirs.
+    fn is_perturbation(&self) -> bool {
+        false
+    }
 
     /// A proposal from `path`, with f evaluated, and the change that made it; None when the
     /// generation fails before a complete path exists (a ray leaves the scene, a sample fails): a
@@ -85,6 +95,7 @@ pub struct Entry<S: Strategy> {
 pub trait Mutation: Send + Sync {
     fn name(&self) -> &'static str;
     fn weight(&self) -> f64;
+    fn is_perturbation(&self) -> bool;
     fn suitable(&self, ctx: &PathContext, path: &PathState) -> bool;
     /// A proposal from `path` with T both ways (computed only when f(ȳ) > 0).
     fn propose(&self, ctx: &PathContext, path: &PathState, rng: &mut Rng, counters: &mut Counters) -> Option<Proposed>;
@@ -96,6 +107,9 @@ impl<S: Strategy> Mutation for Entry<S> {
     }
     fn weight(&self) -> f64 {
         self.weight
+    }
+    fn is_perturbation(&self) -> bool {
+        self.strategy.is_perturbation()
     }
     fn suitable(&self, ctx: &PathContext, path: &PathState) -> bool {
         self.strategy.suitable(ctx, path)
@@ -121,21 +135,29 @@ pub struct StrategySet {
 }
 
 impl StrategySet {
-    /// P_i(path): strategy i's weight over the total weight of the strategies suitable at `path`
-    /// (0 when i is not suitable there).
-    pub fn probability(&self, ctx: &PathContext, path: &PathState, i: usize) -> f64 {
-        let mut total = 0.0;
-        let mut own = 0.0;
-        for (j, e) in self.entries.iter().enumerate() {
-            if e.weight() > 0.0 && e.suitable(ctx, path) {
-                total += e.weight();
-                if j == i {
-                    own = e.weight();
-                }
+    /// The effective weights w_i(path) (module docs, "Selection"), 0 where a strategy is not suitable.
+    pub fn weights(&self, ctx: &PathContext, path: &PathState) -> Vec<f64> {
+        let mut w: Vec<f64> = self
+            .entries
+            .iter()
+            .map(|e| if e.weight() > 0.0 && e.suitable(ctx, path) { e.weight() } else { 0.0 })
+            .collect();
+        let perturbations = self.entries.iter().zip(&w).filter(|(e, &w)| e.is_perturbation() && w > 0.0).count();
+        for (e, w) in self.entries.iter().zip(w.iter_mut()) {
+            if e.is_perturbation() {
+                *w /= perturbations.max(1) as f64;
             }
         }
+        w
+    }
+
+    /// P_i(path): strategy i's effective weight over the total at `path` (0 when i is not
+    /// suitable there).
+    pub fn probability(&self, ctx: &PathContext, path: &PathState, i: usize) -> f64 {
+        let w = self.weights(ctx, path);
+        let total: f64 = w.iter().sum();
         if total > 0.0 {
-            own / total
+            w.get(i).copied().unwrap_or(0.0) / total
         } else {
             0.0
         }
@@ -144,11 +166,7 @@ impl StrategySet {
     /// Chooses a strategy for `path` with the uniform `u`: its index and P_i(path). None when no
     /// strategy is suitable.
     pub fn choose(&self, ctx: &PathContext, path: &PathState, u: f64) -> Option<(usize, f64)> {
-        let weights: Vec<f64> = self
-            .entries
-            .iter()
-            .map(|e| if e.weight() > 0.0 && e.suitable(ctx, path) { e.weight() } else { 0.0 })
-            .collect();
+        let weights = self.weights(ctx, path);
         let total: f64 = weights.iter().sum();
         if !(total > 0.0) {
             return None;

@@ -26,7 +26,7 @@ use crate::scene::{load_scene, Scene};
 use crate::spectrum::Rgb;
 use crate::stats::Counters;
 
-fn scene(name: &str, size: u32) -> Scene {
+pub(super) fn scene(name: &str, size: u32) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));
     let mut scene = load_scene(&path, None).expect("scene").scene;
     let c = &scene.camera;
