@@ -9,6 +9,7 @@ mod info;
 mod load;
 mod mask;
 pub mod mesh_io;
+pub mod portal;
 pub mod procedural;
 pub mod shapes;
 pub mod transform;
