@@ -21,6 +21,8 @@
 //! image depends on the seed and the chain count only (not on the threads).
 
 use super::bidirectional::{Bidirectional, LengthKernel};
+use super::kernel::DirectionKernel;
+use super::portal::PortalPerturbation;
 use super::settings::PmltSettings;
 use super::state::PathState;
 use super::strategy::{Entry, StrategySet};
@@ -54,6 +56,8 @@ pub struct Pmlt {
     pub settings: PmltSettings,
     /// The bidirectional mutation (a value, so that tests can render with a deliberately wrong one).
     pub bidirectional: Bidirectional,
+    /// The portal perturbation (likewise a value, for its wrong variant).
+    pub portal: PortalPerturbation,
 }
 
 /// A chain: its own stream and its current path (with its f and f*), all of which a state saves
@@ -107,11 +111,16 @@ pub fn step(
     if let Some((i, p_forward)) = chosen {
         let entry = &set.entries[i];
         let strategy = stats.strategies.as_mut().and_then(|s| s.get_mut(i));
+        counters.early_rejection = None;
         let y = entry.propose(ctx, current, rng, counters);
+        let cause = counters.early_rejection.take();
         match &y {
             None => {
                 if let Some(s) = strategy {
                     s.generation_failures += 1;
+                    if let Some(cause) = cause {
+                        *s.early_rejections.entry(cause.to_string()).or_default() += 1;
+                    }
                 }
             }
             Some(y) if y.path.f_star > 0.0 => {
@@ -178,18 +187,29 @@ fn splat(path: &PathState, w: f64, film: &mut SplatBuffer) {
 
 impl Pmlt {
     pub fn from_params(params: &toml::Table) -> Result<Pmlt, RenderError> {
-        Ok(Pmlt { settings: PmltSettings::from_params(params)?, bidirectional: Bidirectional::default() })
+        Ok(Pmlt {
+            settings: PmltSettings::from_params(params)?,
+            bidirectional: Bidirectional::default(),
+            portal: PortalPerturbation::default(),
+        })
     }
 
-    /// The strategies of the chain (the bidirectional mutation alone, for now).
+    /// The strategies of the chain: the bidirectional mutation, and the portal perturbation when
+    /// its weight is positive (offered only at paths that cross a portal: `portal` docs).
     pub fn strategies(&self) -> StrategySet {
-        StrategySet {
-            entries: vec![Box::new(Entry {
-                strategy: self.bidirectional,
-                kernel: LengthKernel,
-                weight: self.settings.bidirectional,
-            })],
+        let mut entries: Vec<Box<dyn super::strategy::Mutation>> = vec![Box::new(Entry {
+            strategy: self.bidirectional,
+            kernel: LengthKernel,
+            weight: self.settings.bidirectional,
+        })];
+        if self.settings.portal > 0.0 {
+            entries.push(Box::new(Entry {
+                strategy: self.portal,
+                kernel: DirectionKernel::default(),
+                weight: self.settings.portal,
+            }));
         }
+        StrategySet { entries }
     }
 
     pub(super) fn bdpt_context<'a>(&self, scene: &'a Scene) -> BdptContext<'a> {

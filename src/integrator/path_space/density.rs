@@ -39,7 +39,7 @@ impl Side {
 
 /// The first surface along `ray`, as a vertex reached from the walk's previous vertex; for a camera
 /// walk that leaves the scene, the environment as a vertex at infinity (if the scene has one).
-fn trace(scene: &Scene, ray: &Ray, side: Side, counters: &mut Counters) -> Option<Vertex> {
+pub(super) fn trace(scene: &Scene, ray: &Ray, side: Side, counters: &mut Counters) -> Option<Vertex> {
     counters.rays += 1;
     match scene.intersect(ray) {
         Some(si) => Some(Vertex::surface(scene, &si, -ray.d, Rgb::ONE, side.mode())),

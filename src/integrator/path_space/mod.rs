@@ -33,12 +33,14 @@ pub mod chain;
 pub mod contribution;
 pub mod density;
 pub mod kernel;
+pub mod portal;
 pub mod session;
 pub mod settings;
 pub mod state;
 pub mod strategy;
 #[cfg(test)]
 mod tests;
+pub mod trace;
 
 pub use chain::{Pmlt, PmltRun};
 pub use kernel::{DirectionKernel, RasterKernel};

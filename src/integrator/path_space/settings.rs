@@ -23,11 +23,21 @@ pub struct PmltSettings {
     /// Selection weight of the bidirectional mutation (renormalised over the suitable strategies;
     /// the only strategy until issue 14 adds Veach's perturbations).
     pub bidirectional: f64,
+    /// Selection weight of the portal perturbation (issue 15; offered only at paths that cross a
+    /// `[[portals]]` quad, so it costs nothing in a scene without portals; 0 turns it off).
+    pub portal: f64,
 }
 
 impl Default for PmltSettings {
     fn default() -> Self {
-        PmltSettings { max_depth: 8, bootstrap: 100_000, chains: 1000, mis: MisHeuristic::Balance, bidirectional: 1.0 }
+        PmltSettings {
+            max_depth: 8,
+            bootstrap: 100_000,
+            chains: 1000,
+            mis: MisHeuristic::Balance,
+            bidirectional: 1.0,
+            portal: 1.0,
+        }
     }
 }
 
@@ -55,6 +65,12 @@ impl PmltSettings {
                 settings.bidirectional
             ));
         }
+        if !(settings.portal >= 0.0 && settings.portal.is_finite()) {
+            return bad(format!(
+                "portal = {}: expected a weight ≥ 0 (0 turns the portal perturbation off)",
+                settings.portal
+            ));
+        }
         Ok(settings)
     }
 }
@@ -75,6 +91,7 @@ mod tests {
             ("bootstrap = 0", "bootstrap"),
             ("mis = \"none\"", "mis"),
             ("bidirectional = 0.0", "bidirectional"),
+            ("portal = -1.0", "portal"),
             ("large_step_probability = 0.3", "large_step_probability"),
         ] {
             let t: toml::Table = toml::from_str(bad).expect("toml");
