@@ -240,11 +240,12 @@ fn pmlt_portal_agrees_with_the_reference_on_portal_planes() {
 /// **Wrong variant** of the test above: the portal perturbation without the G terms of its
 /// acceptance ratio (T = k/|n·ω*|, `PortalPerturbation::omit_geometry`), whose portal moves alone
 /// would sample f·G(x_i, x_{i+1}) and so over-weight the reflector's centre (G through the hole up
-/// to 4.5× larger there than at the film's corners). Not run by default: with the bidirectional
-/// mutation taking half the moves the bias is diluted, and at 1/8 of the test's mutations (128
-/// per chain, 1/5 of the image-plane autocorrelation time) it reached only |z| = 3.79 (region 12,
-/// the corner, −13% of its share; the centre regions 5 and 6 +4%); rejecting it needs the full
-/// mutation count, which doubles the test's time beyond issue 15's budget.
+/// to 4.5× larger there than at the film's corners). Measured (2026-12-02, 243 s under load, a
+/// benchmark running beside it): worst |z| = 14.53, the centre region 5's share +12% (z = +12.6)
+/// and the corner region 12's −18% (z = −12.4): rejected. Not run by default: it doubles the
+/// portal-planes test's time beyond issue 15's budget, and at 1/8 of the mutations (128 per
+/// chain, 1/5 of the image-plane autocorrelation time, so the chains hardly leave their correct
+/// bootstrap starts) it reached only |z| = 3.79.
 #[test]
 #[ignore = "doubles the portal-planes test's time (see doc comment)"]
 fn pmlt_portal_without_g_terms_fails_on_portal_planes() {
