@@ -218,14 +218,14 @@ fn pmlt_portal_agrees_with_the_reference_on_portal_planes() {
     let (_, variance) = mean_and_variance_of_mean(&shares(&renders));
     let noise = relative_noise_of_region_means(&reference_image);
     let mut worst = 0.0f64;
-    for r in 0..REGIONS {
-        let sd = (variance[r] + noise[r] * noise[r]).sqrt();
+    for (r, (&v, &nz)) in variance.iter().zip(&noise).enumerate() {
+        let sd = (v + nz * nz).sqrt();
         let (z, power) = ((a.method[r] - a.reference[r]) / sd, SHARE_ERROR * a.reference[r] / sd);
         println!(
             "  region {r:2}: share {:.4} vs {:.4}  z = {z:+.2}  (a 10% error: z = {power:.1}; reference noise {:.2} of the chain's)",
             a.method[r],
             a.reference[r],
-            noise[r] / variance[r].sqrt()
+            nz / v.sqrt()
         );
         assert!(a.reference[r] < POWER_SHARE_FLOOR || power > Z_CRITICAL, "{what}: too weak in region {r}");
         worst = worst.max(z.abs());

@@ -99,6 +99,7 @@ mod tests {
         let down = DVec3::new(0.0, 0.0, -1.0);
         assert!(p.intersect(DVec3::new(0.55, 0.5, 1.0), down, 2.0).is_some());
         assert!(p.intersect(DVec3::new(0.45, 0.5, 1.0), down, 2.0).is_none());
-        assert!(p.intersect(DVec3::new(1.95, 0.9, 1.0), down, 2.0).is_some());
+        assert!(p.intersect(DVec3::new(1.85, 0.9, 1.0), down, 2.0).is_some());
+        assert!(p.intersect(DVec3::new(1.95, 0.9, 1.0), down, 2.0).is_none(), "beyond the far slanted edge");
     }
 }
