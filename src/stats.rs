@@ -39,6 +39,11 @@ pub struct Counters {
     pub nonfinite_dropped: u64,
     /// Per-strategy acceptance (MCMC); keys are strategy names.
     pub strategies: BTreeMap<String, AcceptanceCount>,
+    /// Set by a path-space strategy whose `propose` rejects early, to name the cause (a `'static`
+    /// label); the chain's step takes it into that strategy's `early_rejections`. Never saved or
+    /// merged: it lives between one `propose` and its step.
+    #[serde(skip)]
+    pub early_rejection: Option<&'static str>,
 }
 
 impl Counters {

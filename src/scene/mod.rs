@@ -10,6 +10,7 @@ mod load;
 mod mask;
 pub mod mesh_io;
 mod ply;
+pub mod portal;
 pub mod procedural;
 pub mod shapes;
 pub mod transform;

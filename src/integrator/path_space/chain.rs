@@ -22,9 +22,10 @@
 
 use super::bidirectional::{Bidirectional, LengthKernel};
 use super::caustic::{Caustic, CausticKernel};
-use super::kernel::RasterKernel;
+use super::kernel::{DirectionKernel, RasterKernel};
 use super::lens::Lens;
 use super::multichain::{MultiChain, MultiChainKernel};
+use super::portal::PortalPerturbation;
 use super::settings::PmltSettings;
 use super::state::PathState;
 use super::strategy::{Entry, Mutation, StrategySet};
@@ -61,6 +62,8 @@ pub struct Pmlt {
     /// The lens and caustic perturbations (values for the same reason).
     pub lens: Lens,
     pub caustic: Caustic,
+    /// The portal perturbation (likewise a value, for its wrong variant).
+    pub portal: PortalPerturbation,
 }
 
 /// A chain: its own stream and its current path (with its f and f*), all of which a state saves
@@ -114,11 +117,16 @@ pub fn step(
     if let Some((i, p_forward)) = chosen {
         let entry = &set.entries[i];
         let strategy = stats.strategies.as_mut().and_then(|s| s.get_mut(i));
+        counters.early_rejection = None;
         let y = entry.propose(ctx, current, rng, counters);
+        let cause = counters.early_rejection.take();
         match &y {
             None => {
                 if let Some(s) = strategy {
                     s.generation_failures += 1;
+                    if let Some(cause) = cause {
+                        *s.early_rejections.entry(cause.to_string()).or_default() += 1;
+                    }
                 }
             }
             Some(y) if y.path.f_star > 0.0 => {
@@ -190,6 +198,7 @@ impl Pmlt {
             bidirectional: Bidirectional::default(),
             lens: Lens::default(),
             caustic: Caustic::default(),
+            portal: PortalPerturbation::default(),
         })
     }
 
@@ -207,6 +216,10 @@ impl Pmlt {
         if s.caustic > 0.0 {
             let kernel = CausticKernel::from_lens(&lens, &scene.camera);
             entries.push(Box::new(Entry { strategy: self.caustic, kernel, weight: s.caustic }));
+        }
+        if s.portal > 0.0 {
+            // Offered only at paths that cross a portal (`portal` docs).
+            entries.push(Box::new(Entry { strategy: self.portal, kernel: DirectionKernel::default(), weight: s.portal }));
         }
         if s.multi_chain > 0.0 {
             let kernel = MultiChainKernel::new(lens);

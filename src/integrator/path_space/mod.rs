@@ -38,6 +38,7 @@ pub mod density;
 pub mod kernel;
 pub mod lens;
 pub mod multichain;
+pub mod portal;
 #[cfg(test)]
 mod perturb_tests;
 pub mod retrace;
@@ -47,6 +48,7 @@ pub mod state;
 pub mod strategy;
 #[cfg(test)]
 mod tests;
+pub mod trace;
 
 pub use chain::{Pmlt, PmltRun};
 pub use kernel::{DirectionKernel, RasterKernel};

@@ -30,6 +30,10 @@ pub struct PmltSettings {
     pub lens: f64,
     pub caustic: f64,
     pub multi_chain: f64,
+    /// Selection weight of the portal perturbation (issue 15; 2 like the other perturbations, with
+    /// which it shares its weight; offered only at paths that cross a `[[portals]]` quad, so it
+    /// costs nothing in a scene without portals; 0 turns it off).
+    pub portal: f64,
 }
 
 impl Default for PmltSettings {
@@ -43,6 +47,7 @@ impl Default for PmltSettings {
             lens: 2.0,
             caustic: 2.0,
             multi_chain: 2.0,
+            portal: 2.0,
         }
     }
 }
@@ -71,7 +76,7 @@ impl PmltSettings {
                 settings.bidirectional
             ));
         }
-        for (name, w) in [("lens", settings.lens), ("caustic", settings.caustic), ("multi_chain", settings.multi_chain)]
+        for (name, w) in [("lens", settings.lens), ("caustic", settings.caustic), ("multi_chain", settings.multi_chain), ("portal", settings.portal)]
         {
             if !(w >= 0.0 && w.is_finite()) {
                 return bad(format!("{name} = {w}: expected a weight >= 0 (0 turns the perturbation off)"));
@@ -100,6 +105,7 @@ mod tests {
             ("lens = -1.0", "lens"),
             ("caustic = nan", "caustic"),
             ("multi_chain = inf", "multi_chain"),
+            ("portal = -1.0", "portal"),
             ("large_step_probability = 0.3", "large_step_probability"),
         ] {
             let t: toml::Table = toml::from_str(bad).expect("toml");

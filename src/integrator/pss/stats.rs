@@ -198,6 +198,10 @@ pub struct StrategyStats {
     /// acceptance; serialised as proposals and rate.
     #[serde(serialize_with = "per_depth_counts")]
     pub per_depth: Vec<AcceptanceCount>,
+    /// Of the generation failures, those whose strategy named a cause (`Counters::early_rejection`),
+    /// by cause: e.g. the portal perturbation's "occluded" or "reverse_inconsistent".
+    #[serde(default)]
+    pub early_rejections: std::collections::BTreeMap<String, u64>,
     /// Derived by `finish`: accepted / selected and the mean acceptance probability (null without
     /// selections).
     pub acceptance: Option<f64>,
@@ -274,6 +278,9 @@ impl StrategyStats {
         self.acceptance_probability_sum += o.acceptance_probability_sum;
         for (a, b) in self.per_depth.iter_mut().zip(&o.per_depth) {
             a.merge(b);
+        }
+        for (cause, n) in &o.early_rejections {
+            *self.early_rejections.entry(cause.clone()).or_default() += n;
         }
     }
 
