@@ -32,6 +32,7 @@ pub mod bidirectional;
 pub mod chain;
 pub mod contribution;
 pub mod density;
+pub mod kernel;
 pub mod session;
 pub mod settings;
 pub mod state;
@@ -40,6 +41,7 @@ pub mod strategy;
 mod tests;
 
 pub use chain::{Pmlt, PmltRun};
+pub use kernel::{DirectionKernel, RasterKernel};
 pub use settings::PmltSettings;
 pub use state::{Interaction, PathState, PathVertex};
 pub use strategy::{Entry, Mutation, Strategy, StrategySet};
