@@ -98,8 +98,7 @@ impl GuideView {
     /// The similarity weights S(x̄, v̄, j, k) (Eq. 9) of Υ's members, timed into `counts`.
     pub fn weights(&self, x: &PathState, subset: &[u32], j: usize, k: usize, counts: &GuideCounts) -> Vec<f64> {
         let start = Instant::now();
-        let w =
-            subset.iter().map(|&i| path_similarity(&x.vertices, &self.paths[i as usize].vertices, j, k)).collect();
+        let w = subset.iter().map(|&i| path_similarity(&x.vertices, &self.paths[i as usize].vertices, j, k)).collect();
         counts.similarity_ns.fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
         w
     }

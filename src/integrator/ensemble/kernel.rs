@@ -297,8 +297,8 @@ mod tests {
             };
             let as_array = |q: [f64; 2]| chart(q).to_array();
             let j_omega = jacobian_det_surface(moved, p, h) / jacobian_det_surface(as_array, p, h);
-            let expected = k.stretch.density_lambda(1.0 / lambda) / k.stretch.density_lambda(lambda) * j_omega
-                / (lambda * lambda);
+            let expected =
+                k.stretch.density_lambda(1.0 / lambda) / k.stretch.density_lambda(lambda) * j_omega / (lambda * lambda);
             let rel = |r: f64| (r - expected).abs() / expected;
             let psi = (angle_between(current, guide), angle_between(proposed, guide));
             worst = worst.max(rel(k.reverse_ratio(current, guide, proposed)));

@@ -74,7 +74,8 @@ const M: usize = 16;
 fn update(x: DVec2, others: &[DVec2], kernel: &StretchKernel, variant: Variant, rng: &mut Rng) -> DVec2 {
     let offset = (rng.uniform_f64() * others.len() as f64) as usize;
     let subset: Vec<DVec2> = (0..M).map(|i| others[(offset + i) % others.len()]).collect();
-    let weights = |p: DVec2| subset.iter().map(|&v| point_similarity(p.extend(0.0), v.extend(0.0))).collect::<Vec<f64>>();
+    let weights =
+        |p: DVec2| subset.iter().map(|&v| point_similarity(p.extend(0.0), v.extend(0.0))).collect::<Vec<f64>>();
     let wx = weights(x);
     let total_x: f64 = wx.iter().sum();
     let mut pick = rng.uniform_f64() * total_x;
@@ -114,8 +115,10 @@ fn run(variant: Variant, runs: u64, n: usize, sweeps: usize) -> Vec<DVec2> {
     let mut all = Vec::with_capacity(runs as usize * 2 * n);
     for r in 0..runs {
         let mut rngs: Vec<Rng> = (0..2 * n as u64).map(|i| Rng::new(0xE115 + r, i)).collect();
-        let mut ensembles: [Vec<DVec2>; 2] =
-            [(0..n).map(|i| draw_target(&mut rngs[i])).collect(), (n..2 * n).map(|i| draw_target(&mut rngs[i])).collect()];
+        let mut ensembles: [Vec<DVec2>; 2] = [
+            (0..n).map(|i| draw_target(&mut rngs[i])).collect(),
+            (n..2 * n).map(|i| draw_target(&mut rngs[i])).collect(),
+        ];
         for sweep in 0..sweeps {
             let (moving, guides) = if sweep % 2 == 0 { (0, 1) } else { (1, 0) };
             let guide_states = ensembles[guides].clone();
@@ -132,9 +135,14 @@ fn chi2_of(states: &[DVec2]) -> Chi2Outcome {
     let z = adaptive_integrate_2d(&|p: [f64; 2]| target(DVec2::new(p[0], p[1])), [0.0, 8.0], [0.0, 8.0], 1e-9, 3, 14);
     let cfg = Chi2Config { res: [16, 16], samples: states.len(), test_count: 1, ..Chi2Config::default() };
     let mut next = states.iter();
-    chi2_test(&cfg, [0.0, 8.0], [0.0, 8.0], 1, |_| next.next().map(|p| [p.x, p.y]), |p| {
-        target(DVec2::new(p[0], p[1])) / z
-    })
+    chi2_test(
+        &cfg,
+        [0.0, 8.0],
+        [0.0, 8.0],
+        1,
+        |_| next.next().map(|p| [p.x, p.y]),
+        |p| target(DVec2::new(p[0], p[1])) / z,
+    )
 }
 
 /// 8 independent pairs of ensembles of 4,096 walkers, 40 half-iterations (20 updates per walker):

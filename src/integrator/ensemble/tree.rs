@@ -66,12 +66,8 @@ pub struct EnsembleTree {
 impl EnsembleTree {
     /// The tree over `paths` (paths with f = 0 are left out: they guide nothing).
     pub fn build(paths: &[&PathState]) -> EnsembleTree {
-        let mut keyed: Vec<(Vec<u8>, u32)> = paths
-            .iter()
-            .enumerate()
-            .filter(|(_, p)| p.f_star > 0.0)
-            .map(|(i, p)| (signature(p), i as u32))
-            .collect();
+        let mut keyed: Vec<(Vec<u8>, u32)> =
+            paths.iter().enumerate().filter(|(_, p)| p.f_star > 0.0).map(|(i, p)| (signature(p), i as u32)).collect();
         keyed.sort();
         let mut buckets: HashMap<Vec<u8>, (u32, u32)> = HashMap::new();
         for (at, (sig, _)) in keyed.iter().enumerate() {
