@@ -4,6 +4,7 @@
 
 pub mod bdpt;
 pub mod driver;
+pub mod ensemble;
 pub mod light_tracing;
 pub mod memory;
 pub mod path_space;

@@ -1,0 +1,20 @@
+//! Ensemble Metropolis light transport (Bashford-Rogers et al. 2021, "Ensemble Metropolis Light
+//! Transport", Sec. 3–3.4): `integrator = "emlt"`.
+//!
+//! Two ensembles of path-space chains, X and Y, share the path-space MLT machinery of
+//! `path_space` (state, contribution f, strategies, the bidirectional mutation). Every path of X is
+//! mutated with Y held fixed, using paths of Y as guides for its perturbations; then the ensembles
+//! swap roles (Algorithm 1).
+//!
+//! - `kernel`: the linear guided kernels (the stretch move in R², the great arc on the sphere),
+//!   each with sample, density and reverse ratio side by side.
+//! - `similarity`: Eq. 8–9, how close a guide path is to the current path.
+//! - `tree`: Y indexed by path signature (length and interaction types), and the subset Υ.
+//! - `toy` (tests): the ensemble update on a known 2D target.
+pub mod kernel;
+pub mod similarity;
+#[cfg(test)]
+mod toy;
+pub mod tree;
+pub mod guide;
+pub mod settings;
