@@ -214,7 +214,7 @@ pub trait Integrator: Send + Sync {
 }
 
 /// The names `create` accepts, in the order `plexus render --help` lists them.
-pub const INTEGRATOR_NAMES: &[&str] = &["pt", "bdpt", "light", "pssmlt", "mmlt", "rjmlt", "pmlt"];
+pub const INTEGRATOR_NAMES: &[&str] = &["pt", "bdpt", "light", "pssmlt", "mmlt", "rjmlt", "pmlt", "emlt"];
 
 /// The integrator called `name`, configured from `params` (the scene's `[integrator]` table merged
 /// with `--set` overrides; unknown keys are errors).
@@ -227,6 +227,7 @@ pub fn create(name: &str, params: &toml::Table) -> Result<Box<dyn Integrator>, R
         "mmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Mmlt, params)?)),
         "rjmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Rjmlt, params)?)),
         "pmlt" => Ok(Box::new(path_space::Pmlt::from_params(params)?)),
+        "emlt" => Ok(Box::new(ensemble::render::Emlt::from_params(params)?)),
         other => Err(RenderError::UnknownIntegrator(other.to_string())),
     }
 }

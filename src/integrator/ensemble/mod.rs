@@ -11,10 +11,15 @@
 //! - `similarity`: Eq. 8–9, how close a guide path is to the current path.
 //! - `tree`: Y indexed by path signature (length and interaction types), and the subset Υ.
 //! - `toy` (tests): the ensemble update on a known 2D target.
+//! - `settings`, `guide`: the settings (adaptive α); Y as the guided strategies see it.
+//! - `linear`: the linear lens and linear caustic perturbations (guided, with the plain fallback).
+//! - `render`: Algorithm 1 on the driver.
+pub mod guide;
 pub mod kernel;
+pub mod linear;
+pub mod render;
+pub mod settings;
 pub mod similarity;
 #[cfg(test)]
 mod toy;
 pub mod tree;
-pub mod guide;
-pub mod settings;

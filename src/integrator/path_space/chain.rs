@@ -77,11 +77,11 @@ pub struct ChainUnit {
 }
 
 /// Per-slot scratch (BDPT subpaths for the bootstrap) and statistics.
-pub(super) struct SlotState {
+pub(crate) struct SlotState {
     camera: Vec<Vertex>,
     light: Vec<Vertex>,
     scratch: ConnectScratch,
-    pub(super) stats: MltStats,
+    pub(crate) stats: MltStats,
 }
 
 /// A render with its unnormalised film (for tests that check the film's bits).
@@ -228,13 +228,13 @@ impl Pmlt {
         StrategySet { entries }
     }
 
-    pub(super) fn bdpt_context<'a>(&self, scene: &'a Scene) -> BdptContext<'a> {
+    pub(crate) fn bdpt_context<'a>(&self, scene: &'a Scene) -> BdptContext<'a> {
         BdptContext::new(scene, usize::MAX, self.settings.mis)
     }
 
     /// Bootstrap sample `i`: a BDPT sample over the whole film from stream i; returns Σ_t
     /// luminance(w_t C_t). With `paths`, also every technique's complete path with that weight.
-    pub(super) fn bootstrap_sample(
+    pub(crate) fn bootstrap_sample(
         &self,
         bctx: &BdptContext,
         seed: u64,
@@ -266,7 +266,7 @@ impl Pmlt {
         }
     }
 
-    pub(super) fn new_slot(&self, set: &StrategySet) -> SlotState {
+    pub(crate) fn new_slot(&self, set: &StrategySet) -> SlotState {
         SlotState {
             camera: Vec::new(),
             light: Vec::new(),
@@ -279,7 +279,7 @@ impl Pmlt {
     /// again up to `START_ATTEMPTS` times while its f is zero. Depends on the seed and `c` only,
     /// so a shard starts its chains as the whole render does.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn start_chain(
+    pub(crate) fn start_chain(
         &self,
         c: u64,
         start: &Distribution1D,
