@@ -315,7 +315,10 @@ fn a_black_render_says_so_on_stderr_for_every_integrator() {
     let scene = write(dir, "s.toml", &text);
     for integrator in plexus::integrator::INTEGRATOR_NAMES {
         let mut args = vec!["render", &scene, "--integrator", integrator, "--spp", "1", "--out", "o.exr"];
-        if integrator.ends_with("mlt") {
+        if *integrator == "emlt" {
+            // emlt's chains are its two ensembles.
+            args.extend(["--set", "bootstrap=2000", "--set", "ensemble_size=4"]);
+        } else if integrator.ends_with("mlt") {
             args.extend(["--set", "bootstrap=2000", "--set", "chains=4"]);
         }
         let o = plexus(&args, dir);

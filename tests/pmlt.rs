@@ -213,7 +213,8 @@ fn portal_regions(scene: &Scene, params: &str, mpp: u64, omit_geometry: bool) ->
 }
 
 /// pmlt's settings and mutations per pixel of the portal-planes tests (bidirectional + portal).
-const PORTAL_PLANES_PARAMS: &str = "max_depth = 8\nbootstrap = 20000\nchains = 1024\nbidirectional = 1.0\nportal = 1.0";
+const PORTAL_PLANES_PARAMS: &str =
+    "max_depth = 8\nbootstrap = 20000\nchains = 1024\nbidirectional = 1.0\nportal = 1.0\nlens = 0.0\ncaustic = 0.0\nmulti_chain = 0.0";
 const PORTAL_PLANES_MPP: u64 = 1024;
 
 /// The portal perturbation (issue 15) on the portal paper's Fig. 4 scene, with the bidirectional

@@ -158,6 +158,11 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let camera = &loaded.scene.camera;
     check_outputs(&images, camera.width as usize, camera.height as usize)?;
     super::outputs::check_state_paths(&state_paths)?;
+    if !integrator.supports_sessions()
+        && (!state_paths.is_empty() || args.shard.is_some() || checkpoint_every.is_some())
+    {
+        return Err(bad_input(integrator.no_state().to_string()));
+    }
     let scene_id = state_io::scene_identity(args.scene.as_deref())?;
     let load_time = load_start.elapsed().as_secs_f64();
 
@@ -202,7 +207,26 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         bar_wanted(),
     )
     .with_previews(args.preview_every.map(|every_seconds| Previews { every_seconds, outputs: images.clone() }));
-    let rendered = integrator.render_session(scene, &job, &progress, &session);
+    let rendered = if integrator.supports_sessions() {
+        integrator.render_session(scene, &job, &progress, &session)
+    } else {
+        // No state to save: a plain render, its state record only describing a complete run.
+        integrator.render(scene, &job, &progress).map(|output| plexus::state::SessionOutput {
+            output,
+            state: plexus::state::RenderState {
+                passes_done: 0,
+                unit_count: 0,
+                film_width: 0,
+                film_height: 0,
+                film: Vec::new(),
+                counters: Default::default(),
+                part: Vec::new(),
+                complete: true,
+                interrupted: false,
+                wall_time_s: 0.0,
+            },
+        })
+    };
     progress.finish();
     let rendered = rendered?;
     let file = StateFile { header, state: rendered.state };

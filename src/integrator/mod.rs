@@ -204,6 +204,13 @@ pub trait Integrator: Send + Sync {
         Err(self.no_state())
     }
 
+    /// Whether `run_session` is implemented (checkpoints, interrupts with a saved state, resume,
+    /// shards). An integrator without it renders only through `render`; the CLI then refuses
+    /// the session options with `no_state`'s message.
+    fn supports_sessions(&self) -> bool {
+        true
+    }
+
     /// The error of the defaults above.
     fn no_state(&self) -> RenderError {
         RenderError::State(StateError::Mismatch(format!(

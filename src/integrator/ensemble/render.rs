@@ -120,6 +120,10 @@ impl Integrator for Emlt {
         serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
     }
 
+    fn supports_sessions(&self) -> bool {
+        false
+    }
+
     fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
         let start_time = Instant::now();
         let (width, height) = (scene.camera.width, scene.camera.height);
@@ -192,6 +196,10 @@ impl Integrator for Emlt {
             progress.set_total(halves.saturating_mul(e * it));
             progress.message("mutating");
             let mut last = Duration::ZERO;
+            // Previews at swaps (the only points where every chain of X has moved the same number
+            // of times), normalised as the final image is.
+            let preview_every = progress.preview_interval().map(Duration::from_secs_f64);
+            let mut last_preview = Instant::now();
             for half in 0..halves {
                 if let Budget::Seconds(s) = job.budget {
                     let now = start_time.elapsed();
@@ -245,6 +253,13 @@ impl Integrator for Emlt {
                 std::mem::swap(&mut x, &mut y);
                 report.swaps += 1;
                 last = half_start.elapsed();
+                if preview_every.is_some_and(|every| last_preview.elapsed() >= every) {
+                    let n: u64 = stats.per_depth.iter().map(|d| d.iterations).sum();
+                    if n > 0 {
+                        progress.preview(&film.to_image(b * pixels as f64 / n as f64));
+                    }
+                    last_preview = Instant::now();
+                }
             }
         } else {
             warnings.push(format!(

@@ -219,7 +219,11 @@ impl Pmlt {
         }
         if s.portal > 0.0 {
             // Offered only at paths that cross a portal (`portal` docs).
-            entries.push(Box::new(Entry { strategy: self.portal, kernel: DirectionKernel::default(), weight: s.portal }));
+            entries.push(Box::new(Entry {
+                strategy: self.portal,
+                kernel: DirectionKernel::default(),
+                weight: s.portal,
+            }));
         }
         if s.multi_chain > 0.0 {
             let kernel = MultiChainKernel::new(lens);

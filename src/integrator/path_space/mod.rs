@@ -38,9 +38,9 @@ pub mod density;
 pub mod kernel;
 pub mod lens;
 pub mod multichain;
-pub mod portal;
 #[cfg(test)]
 mod perturb_tests;
+pub mod portal;
 pub mod retrace;
 pub mod session;
 pub mod settings;

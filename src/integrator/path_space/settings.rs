@@ -76,8 +76,12 @@ impl PmltSettings {
                 settings.bidirectional
             ));
         }
-        for (name, w) in [("lens", settings.lens), ("caustic", settings.caustic), ("multi_chain", settings.multi_chain), ("portal", settings.portal)]
-        {
+        for (name, w) in [
+            ("lens", settings.lens),
+            ("caustic", settings.caustic),
+            ("multi_chain", settings.multi_chain),
+            ("portal", settings.portal),
+        ] {
             if !(w >= 0.0 && w.is_finite()) {
                 return bad(format!("{name} = {w}: expected a weight >= 0 (0 turns the perturbation off)"));
             }
