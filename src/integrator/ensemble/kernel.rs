@@ -123,7 +123,7 @@ impl GreatArcKernel {
     pub fn arc_point(current: DVec3, guide: DVec3, lambda: f64) -> Option<DVec3> {
         let psi = angle_between(current, guide);
         let psi_new = lambda * psi;
-        if !(psi >= ARC_MIN_ANGLE && psi_new >= ARC_MIN_ANGLE && psi_new < std::f64::consts::PI) {
+        if !(psi >= ARC_MIN_ANGLE && (ARC_MIN_ANGLE..std::f64::consts::PI).contains(&psi_new)) {
             return None;
         }
         let s = psi.sin();
