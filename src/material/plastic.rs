@@ -11,11 +11,18 @@
 //! symmetric in wo and wi, so the BRDF is reciprocal, and ∫ f cos ≤ 1 (checked by quadrature in
 //! the tests). Roughness 0 is the narrowest GGX lobe (`ALPHA_MIN`), Mitsuba's smooth coat up to a
 //! lobe 1e-4 rad wide.
+//!
+//! A rough coating (`with_roughness`, Mitsuba's `roughplastic`) replaces the smooth interface's
+//! 1 − F(cos θ) by the rough interface's transmittance 1 − R_α(cos θ), R_α the directional albedo
+//! of the GGX reflection lobe (Fresnel and Smith shadowing included: light the microfacets shadow is
+//! lost, as in Mitsuba 3), and F_dr by the inside's hemispherical average 2∫ R_α,1/η(μ) μ dμ. Mitsuba
+//! 3's roughplastic precomputes the same two quantities (its `eval_reflectance` tables); with the
+//! smooth formulas a rough coating's base is up to ~15% brighter than Mitsuba's (α = 0.2, η = 1.5).
 
 use glam::Vec3;
 
 use super::fresnel::fresnel_dielectric;
-use super::microfacet::{half_vector, Ggx};
+use super::microfacet::{half_vector, Ggx, ALPHA_MIN};
 use serde::Serialize;
 
 use crate::spectrum::Rgb;
@@ -32,9 +39,55 @@ pub struct Plastic {
     pub specular: Rgb,
     pub ior: f32,
     pub nonlinear: bool,
-    /// Internal diffuse reflectance F_dr of the coating (derived from `ior`).
+    /// Internal diffuse reflectance F_dr of the coating (derived from `ior`, and α when rough).
     #[serde(skip)]
     fdr: f32,
+    /// A rough coating's transmittance 1 − R_α(μ) at μ = i/(COAT_RES − 1); `None`: smooth, 1 − F(μ).
+    #[serde(skip)]
+    coat: Option<[f32; COAT_RES]>,
+}
+
+/// Entries of a rough coating's transmittance table over cos θ ∈ [0, 1] (Mitsuba 3 uses 64).
+const COAT_RES: usize = 64;
+/// Midpoint cells per axis of the visible-normal quadrature of R_α.
+const COAT_CELLS: usize = 64;
+
+/// The rough interface's directional albedos at cos θ = `mu` for a GGX lobe of width `alpha` and
+/// relative index `eta`: (reflected, transmitted). With visible normals m (Heitz 2018) the
+/// estimators are F(w·m) G1(w_r) and (1 − F(w·m)) G1(w_t), w_r and w_t the reflected and refracted
+/// directions: the uncorrelated Smith form Mitsuba 3 uses for these tables (its `eval_reflectance`
+/// and `eval_transmittance`), so light the microfacets mask on the way out is lost. Integrated by
+/// the midpoint rule on a COAT_CELLS² grid over the warp's unit square (deterministic).
+pub fn rough_albedos(alpha: f32, eta: f32, mu: f32) -> (f32, f32) {
+    let ggx = Ggx::new(alpha);
+    let mu = mu.clamp(1e-6, 1.0);
+    let w = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
+    let (mut r, mut t) = (0.0f64, 0.0f64);
+    for i in 0..COAT_CELLS {
+        for j in 0..COAT_CELLS {
+            let u = [(i as f32 + 0.5) / COAT_CELLS as f32, (j as f32 + 0.5) / COAT_CELLS as f32];
+            let m = ggx.sample_visible(w, u);
+            let c = w.dot(m);
+            if c <= 0.0 {
+                continue;
+            }
+            let f = fresnel_dielectric(c, eta).reflectance;
+            let wr = 2.0 * c * m - w;
+            if wr.z > 0.0 {
+                r += f64::from(f * ggx.g1(wr));
+            }
+            // Snell through the microfacet m: w_t = −w/η + (c/η − cos θt) m.
+            let sin2_t = (1.0 - c * c) / (eta * eta);
+            if f < 1.0 && sin2_t < 1.0 {
+                let wt = -w / eta + (c / eta - (1.0 - sin2_t).sqrt()) * m;
+                if wt.z < 0.0 {
+                    t += f64::from((1.0 - f) * ggx.g1(-wt));
+                }
+            }
+        }
+    }
+    let n = (COAT_CELLS * COAT_CELLS) as f64;
+    ((r / n) as f32, (t / n) as f32)
 }
 
 /// Hemispherical average 2∫₀¹ F(μ) μ dμ of the Fresnel reflectance seen from outside (index `ior`
@@ -55,7 +108,40 @@ impl Plastic {
     /// F_dr = 1 − (1 − F_dr,ext)/η² (see the module doc) is computed once here.
     pub fn new(diffuse: Rgb, specular: Rgb, ior: f32, nonlinear: bool) -> Plastic {
         let fdr = (1.0 - (1.0 - diffuse_fresnel_external(ior)) / (ior * ior)).clamp(0.0, 1.0);
-        Plastic { diffuse, specular, ior, nonlinear, fdr }
+        Plastic { diffuse, specular, ior, nonlinear, fdr, coat: None }
+    }
+    /// The same plastic under a GGX-rough coating of width `alpha` (see the module doc): its
+    /// transmittance table and internal reflectance. α ≤ `ALPHA_MIN` stays smooth.
+    pub fn with_roughness(&self, alpha: f32) -> Plastic {
+        if !(alpha > ALPHA_MIN) {
+            return Plastic {
+                coat: None,
+                fdr: Plastic::new(self.diffuse, self.specular, self.ior, self.nonlinear).fdr,
+                ..*self
+            };
+        }
+        let mut coat = [0.0f32; COAT_RES];
+        let mut inside = 0.0f64;
+        for (i, t) in coat.iter_mut().enumerate() {
+            let mu = i as f32 / (COAT_RES - 1) as f32;
+            *t = rough_albedos(alpha, self.ior, mu).1;
+            // F_dr as Mitsuba 3 sums it: 2 × the mean of R(μ)·μ over the table's μ grid.
+            inside += 2.0 * f64::from(mu) * f64::from(rough_albedos(alpha, 1.0 / self.ior, mu).0);
+        }
+        Plastic { fdr: ((inside / COAT_RES as f64) as f32).clamp(0.0, 1.0), coat: Some(coat), ..*self }
+    }
+    /// The coating's transmittance at cos θ = `mu` > 0: 1 − F(μ) when smooth, else the rough table
+    /// (linear interpolation).
+    pub fn transmittance(&self, mu: f32) -> f32 {
+        match &self.coat {
+            None => 1.0 - fresnel_dielectric(mu, self.ior).reflectance,
+            Some(t) => {
+                let x = mu.clamp(0.0, 1.0) * (COAT_RES - 1) as f32;
+                let i = (x as usize).min(COAT_RES - 2);
+                let w = x - i as f32;
+                t[i] * (1.0 - w) + t[i + 1] * w
+            }
+        }
     }
     /// The same plastic with another base colour (a texture lookup); F_dr is kept.
     pub fn with_colours(&self, diffuse: Rgb, specular: Rgb) -> Plastic {
@@ -107,7 +193,33 @@ pub fn eval_diffuse(p: &Plastic, wo: Vec3, wi: Vec3) -> Rgb {
     if wo.z <= 0.0 || wi.z <= 0.0 {
         return Rgb::ZERO;
     }
-    let to = 1.0 - fresnel_dielectric(wo.z, p.ior).reflectance;
-    let ti = 1.0 - fresnel_dielectric(wi.z, p.ior).reflectance;
+    let to = p.transmittance(wo.z);
+    let ti = p.transmittance(wi.z);
     p.base() * (std::f32::consts::FRAC_1_PI * to * ti)
+}
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rough coating's base term against Mitsuba 3.9.1's `roughplastic` (scalar_rgb, GGX,
+    /// α = 0.2, int_ior 1.5 over air 1.000277, diffuse 0.8, wo along the normal): its diffuse
+    /// component's `eval` · π η² / cos θi, read with `bsdf.eval` at cos θi = 1, 0.5, 0.1 (linear,
+    /// then nonlinear). Bound 0.5%: the two renderers integrate the same tables with different
+    /// quadratures (measured: largest 0.10%). The wrong variant, the smooth coating's formulas
+    /// (1 − F and F_dr of a flat interface, the model before this test) measured +28%, +29%, −23%
+    /// (linear) and +17%, +19%, −29% (nonlinear): the living room's too-bright dark regions.
+    #[test]
+    fn rough_coating_base_matches_mitsuba_3() {
+        let mitsuba = [[1.427219, 1.340194, 1.056073], [1.200210, 1.127026, 0.888097]];
+        let eta = 1.5 / 1.000277;
+        for (nonlinear, expected) in [false, true].into_iter().zip(mitsuba) {
+            let p = Plastic::new(Rgb::splat(0.8), Rgb::ONE, eta, nonlinear).with_roughness(0.2);
+            for (mu, want) in [1.0f32, 0.5, 0.1].into_iter().zip(expected) {
+                let wi = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+                let got = eval_diffuse(&p, Vec3::Z, wi).x * std::f32::consts::PI * eta * eta;
+                let rel = (f64::from(got) / want - 1.0).abs();
+                assert!(rel < 5e-3, "nonlinear {nonlinear}, cos θi {mu}: plexus {got}, Mitsuba 3 {want} ({rel:.4})");
+            }
+        }
+    }
 }

@@ -120,9 +120,10 @@ impl Builder<'_> {
                 }
                 let diffuse = colour(ColourSlot::Diffuse, "diffuse", &d.diffuse, 0.5)?;
                 let specular = colour(ColourSlot::Specular, "specular", &d.specular, 1.0)?;
+                let alpha = self.roughness(&key("roughness"), d.roughness)?;
                 Material::RoughPlastic {
-                    alpha: self.roughness(&key("roughness"), d.roughness)?,
-                    plastic: Plastic::new(diffuse, specular, ior, d.nonlinear.unwrap_or(false)),
+                    alpha,
+                    plastic: Plastic::new(diffuse, specular, ior, d.nonlinear.unwrap_or(false)).with_roughness(alpha),
                 }
             }
             _ => unreachable!("material type checked above"),
