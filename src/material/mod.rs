@@ -71,6 +71,10 @@ pub enum TransportMode {
 }
 
 /// A material, with parameters as the scene file gives them (validated).
+// RoughPlastic carries its coating's 64-entry transmittance table inline (~300 bytes), which keeps
+// Material `Copy`; moving the table behind a pointer or a per-scene cache is the alternative if a
+// profile shows the copies (not measured yet).
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum Material {
