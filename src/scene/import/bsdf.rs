@@ -28,11 +28,21 @@ pub struct Materials<'a> {
     pub sections: Vec<Section>,
     names: HashMap<*const Obj, String>,
     taken: HashMap<String, usize>,
+    /// Mitsuba 3 (version 3.x): a `conductor` without `material`, `eta` or `k` is its perfect
+    /// mirror ("none"), where Mitsuba 0.5/0.6 default to copper.
+    pub mitsuba3: bool,
 }
 
 impl<'a> Materials<'a> {
     pub fn new(objects: &'a Objects, toml_dir: &'a std::path::Path) -> Materials<'a> {
-        Materials { objects, toml_dir, sections: Vec::new(), names: HashMap::new(), taken: HashMap::new() }
+        Materials {
+            objects,
+            toml_dir,
+            sections: Vec::new(),
+            names: HashMap::new(),
+            taken: HashMap::new(),
+            mitsuba3: false,
+        }
     }
 
     /// The material name for `obj`, converting it on first use.
@@ -278,7 +288,12 @@ impl<'a> Materials<'a> {
     fn conductor(&mut self, o: &Obj, sec: &mut Section, w: &mut Warnings) -> Result<(), ImportError> {
         let alpha = if o.plugin == "roughconductor" { self.alpha(o, w)? } else { 0.0 };
         o.ignore(&["ext_eta"]);
-        let preset = o.string("material")?;
+        let preset = match o.string("material")? {
+            None if self.mitsuba3 && !o.props.iter().any(|p| p.name == "eta" || p.name == "k") => {
+                Some(("none".to_string(), o.loc.clone()))
+            }
+            preset => preset,
+        };
         let (eta, k) = match (&preset, o.take("eta"), o.take("k")) {
             (_, Some(e), Some(k)) => (self.plain_colour(o, e, w)?, self.plain_colour(o, k, w)?),
             (Some((name, loc)), None, None) => {

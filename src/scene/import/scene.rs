@@ -21,6 +21,7 @@ pub fn convert(
 ) -> Result<Imported, ImportError> {
     let mut w = Warnings::default();
     let mut materials = Materials::new(objects, toml_dir);
+    materials.mitsuba3 = version.starts_with('3');
     let mut camera = None;
     let mut render = Section::new("render");
     let mut integrator = None;

@@ -496,3 +496,18 @@ fn hostile_files_say_exactly_what_is_unsupported() {
     let m = t["materials"]["m"].as_table().unwrap();
     assert_eq!((m["type"].as_str(), m["two_sided"].as_bool(), f(&m["opacity"])), (Some("diffuse"), Some(true), 0.5));
 }
+
+/// A `conductor` with no `material`, `eta` or `k` is copper in Mitsuba 0.5/0.6 and a perfect
+/// mirror in Mitsuba 3 (checked against Mitsuba 3's own default): the importer follows the file's
+/// version. Before, Mitsuba 3 files got copper.
+#[test]
+fn a_bare_conductor_follows_the_files_mitsuba_version() {
+    let d = dir();
+    let body = r#"<bsdf type="conductor" id="c"/>
+  <shape type="obj"><string name="filename" value="tri.obj"/><ref id="c"/></shape>"#;
+    let old = table(&import(d.path(), &scene("0.6.0", SENSOR_06, body)).unwrap());
+    let new = table(&import(d.path(), &scene("3.0.0", SENSOR_3, body)).unwrap());
+    assert_eq!(old["materials"]["c"]["type"].as_str(), Some("conductor"));
+    assert!(old["materials"]["c"].get("eta").is_some(), "Mitsuba 0.6: copper's eta and k");
+    assert_eq!(new["materials"]["c"]["type"].as_str(), Some("mirror"));
+}
