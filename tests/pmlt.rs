@@ -145,7 +145,9 @@ fn pmlt_agrees_with_pt_on_cornell_box() {
 /// vertices too.
 #[test]
 fn pmlt_agrees_with_pt_on_cornell_glossy() {
-    pmlt_agrees_with("cornell-glossy", &[ALL], 768, ("pt", 1024));
+    // 1024 mutations and 1536 spp: the rough-coating plastic (a darker blue block) left region 8
+    // at power 4.9 with 768 / 1024.
+    pmlt_agrees_with("cornell-glossy", &[ALL], 1024, ("pt", 1536));
 }
 
 /// The glass Cornell box with all strategies: the glass sphere seen directly (E S S D L, the lens
