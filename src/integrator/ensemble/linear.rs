@@ -49,6 +49,66 @@ pub struct GuidedKernel<K> {
     pub counts: Arc<GuideCounts>,
 }
 
+impl<K: Send + Sync> GuidedKernel<K> {
+    /// The frame every guided proposal shares (Sec. 3.4): Υ from the chain's own offset; with
+    /// fewer than two paths in it the plain perturbation `plain`, else `guided` with Υ; a proposal
+    /// whose signature changed is rejected, since the reverse move must see the same Υ.
+    fn propose_with<P: Strategy<Kernel = K, Move = ()>>(
+        &self,
+        plain: P,
+        ctx: &PathContext,
+        path: &PathState,
+        rng: &mut Rng,
+        counters: &mut Counters,
+        guided: impl FnOnce(&[u32], u64, &mut Rng, &mut Counters) -> Option<(PathState, GuidedMove)>,
+    ) -> Option<(PathState, GuidedMove)> {
+        let offset = rng.next_u64();
+        let subset = self.view.subset(path, offset);
+        let (y, mv) = if subset.len() < 2 {
+            self.counts.fallback.fetch_add(1, Ordering::Relaxed);
+            let (y, ()) = plain.propose(ctx, path, &self.plain, rng, counters)?;
+            (y, GuidedMove::Fallback { offset })
+        } else {
+            self.counts.guided.fetch_add(1, Ordering::Relaxed);
+            guided(&subset, offset, rng, counters)?
+        };
+        if !same_signature(path, &y) {
+            self.counts.signature_changed.fetch_add(1, Ordering::Relaxed);
+            return None;
+        }
+        Some((y, mv))
+    }
+
+    /// The density of `propose_with`'s move `mv`: the same Υ (from `from` and the recorded
+    /// offset), the plain perturbation's density for a fallback, `guided(Υ, guide)` otherwise; 0
+    /// where the move could not have been made or the density is not finite.
+    fn transition_with<P: Strategy<Kernel = K, Move = ()>>(
+        &self,
+        plain: P,
+        ctx: &PathContext,
+        from: &PathState,
+        to: &PathState,
+        mv: &GuidedMove,
+        guided: impl FnOnce(&[u32], u32) -> f64,
+    ) -> f64 {
+        if !same_signature(from, to) {
+            return 0.0;
+        }
+        let subset = self.view.subset(from, mv.offset());
+        let t = match *mv {
+            GuidedMove::Fallback { .. } if subset.len() >= 2 => 0.0,
+            GuidedMove::Fallback { .. } => plain.transition(ctx, &self.plain, from, to, &()),
+            GuidedMove::Guided { .. } if subset.len() < 2 => 0.0,
+            GuidedMove::Guided { guide, .. } => guided(&subset, guide),
+        };
+        if t.is_finite() {
+            t
+        } else {
+            0.0
+        }
+    }
+}
+
 /// What a guided proposal recorded: Υ's offset and, when guided, the guide (its index in Y).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum GuidedMove {
@@ -127,35 +187,23 @@ impl Strategy for LinearLens {
         rng: &mut Rng,
         counters: &mut Counters,
     ) -> Option<(PathState, GuidedMove)> {
-        let offset = rng.next_u64();
         let view = &kernel.view;
-        let subset = view.subset(path, offset);
-        let (y, mv) = if subset.len() < 2 {
-            kernel.counts.fallback.fetch_add(1, Ordering::Relaxed);
-            let (y, ()) = Lens::default().propose(ctx, path, &kernel.plain, rng, counters)?;
-            (y, GuidedMove::Fallback { offset })
-        } else {
-            kernel.counts.guided.fetch_add(1, Ordering::Relaxed);
+        kernel.propose_with(Lens::default(), ctx, path, rng, counters, |subset, offset, rng, counters| {
             let x = &path.vertices;
             let k = lens_chain_end(x)?;
-            let w = view.weights(path, &subset, 0, k, &kernel.counts);
+            let w = view.weights(path, subset, 0, k, &kernel.counts);
             let (at, _) = choose_weighted(&w, rng.uniform_f64())?;
             let guide = subset[at];
             let v = view.paths[guide as usize].raster.as_dvec2();
-            let stretch = StretchKernel { alpha: view.alpha(&subset) };
+            let stretch = StretchKernel { alpha: view.alpha(subset) };
             let (r, _) = stretch.sample(path.raster.as_dvec2(), v, rng.uniform_f64());
             let raster = offset_raster(ctx, path.raster, r - path.raster.as_dvec2())?;
             let ray = ctx.scene.camera.ray_through(raster);
             let new = retrace(ctx, x, 0, k, &x[0].vertex, ray.d, counters)?;
             let vertices: Vec<PathVertex> =
                 x[..1].iter().copied().chain(new).chain(x[k + 1..].iter().copied()).collect();
-            (PathState::from_path_vertices(ctx, vertices, counters), GuidedMove::Guided { offset, guide })
-        };
-        if !same_signature(path, &y) {
-            kernel.counts.signature_changed.fetch_add(1, Ordering::Relaxed);
-            return None;
-        }
-        Some((y, mv))
+            Some((PathState::from_path_vertices(ctx, vertices, counters), GuidedMove::Guided { offset, guide }))
+        })
     }
 
     fn transition(
@@ -166,40 +214,23 @@ impl Strategy for LinearLens {
         to: &PathState,
         mv: &GuidedMove,
     ) -> f64 {
-        if !same_signature(from, to) {
-            return 0.0;
-        }
         let view = &kernel.view;
-        let subset = view.subset(from, mv.offset());
-        let t = match *mv {
-            GuidedMove::Fallback { .. } => {
-                if subset.len() >= 2 {
-                    return 0.0;
-                }
-                Lens::default().transition(ctx, &kernel.plain, from, to, &())
+        kernel.transition_with(Lens::default(), ctx, from, to, mv, |subset, guide| {
+            let Some(k) = lens_chain_end(&from.vertices) else { return 0.0 };
+            let Some(at) = position(subset, guide) else { return 0.0 };
+            let Some(w) = self.selection(view, from, subset, at, k, &kernel.counts) else { return 0.0 };
+            let v = view.paths[guide as usize].raster.as_dvec2();
+            let (s_from, s_to) = ((from.raster.as_dvec2() - v).length(), (to.raster.as_dvec2() - v).length());
+            let stretch = StretchKernel { alpha: view.alpha(subset) };
+            #[allow(unused_mut)]
+            let mut g = stretch.density_lambda(s_to / s_from);
+            #[cfg(any(test, feature = "testing"))]
+            if self.omit_lambda && g > 0.0 {
+                g = 1.0;
             }
-            GuidedMove::Guided { guide, .. } => {
-                let Some(k) = lens_chain_end(&from.vertices) else { return 0.0 };
-                let Some(at) = position(&subset, guide).filter(|_| subset.len() >= 2) else { return 0.0 };
-                let Some(w) = self.selection(view, from, &subset, at, k, &kernel.counts) else { return 0.0 };
-                let v = view.paths[guide as usize].raster.as_dvec2();
-                let (s_from, s_to) = ((from.raster.as_dvec2() - v).length(), (to.raster.as_dvec2() - v).length());
-                let stretch = StretchKernel { alpha: view.alpha(&subset) };
-                #[allow(unused_mut)]
-                let mut g = stretch.density_lambda(s_to / s_from);
-                #[cfg(any(test, feature = "testing"))]
-                if self.omit_lambda && g > 0.0 {
-                    g = 1.0;
-                }
-                let t_px = w * g / (s_from * s_to);
-                raster_to_solid_angle(ctx, to, t_px) * retrace_jacobian(&to.vertices, 0, k)
-            }
-        };
-        if t.is_finite() {
-            t
-        } else {
-            0.0
-        }
+            let t_px = w * g / (s_from * s_to);
+            raster_to_solid_angle(ctx, to, t_px) * retrace_jacobian(&to.vertices, 0, k)
+        })
     }
 
     fn reverse(&self, mv: &GuidedMove) -> GuidedMove {
@@ -245,32 +276,20 @@ impl Strategy for LinearCaustic {
         rng: &mut Rng,
         counters: &mut Counters,
     ) -> Option<(PathState, GuidedMove)> {
-        let offset = rng.next_u64();
         let view = &kernel.view;
-        let subset = view.subset(path, offset);
-        let (y, mv) = if subset.len() < 2 {
-            kernel.counts.fallback.fetch_add(1, Ordering::Relaxed);
-            let (y, ()) = Caustic::default().propose(ctx, path, &kernel.plain, rng, counters)?;
-            (y, GuidedMove::Fallback { offset })
-        } else {
-            kernel.counts.guided.fetch_add(1, Ordering::Relaxed);
+        kernel.propose_with(Caustic::default(), ctx, path, rng, counters, |subset, offset, rng, counters| {
             let x = &path.vertices;
             let j = caustic_pivot(x)?;
-            let w = view.weights(path, &subset, j - 1, j, &kernel.counts);
+            let w = view.weights(path, subset, j - 1, j, &kernel.counts);
             let guide = subset[best_match(&w)?];
             let (w1, w2) = Self::directions(path, &view.paths[guide as usize], j);
-            let arc = GreatArcKernel { stretch: StretchKernel { alpha: view.alpha(&subset) } };
+            let arc = GreatArcKernel { stretch: StretchKernel { alpha: view.alpha(subset) } };
             let (dir, _) = arc.sample(w1, w2, rng.uniform_f64())?;
             let new = retrace(ctx, x, j, 1, &x[j].vertex, dir.as_vec3(), counters)?;
             let vertices: Vec<PathVertex> =
                 x[..1].iter().copied().chain(new.into_iter().rev()).chain(x[j..].iter().copied()).collect();
-            (PathState::from_path_vertices(ctx, vertices, counters), GuidedMove::Guided { offset, guide })
-        };
-        if !same_signature(path, &y) {
-            kernel.counts.signature_changed.fetch_add(1, Ordering::Relaxed);
-            return None;
-        }
-        Some((y, mv))
+            Some((PathState::from_path_vertices(ctx, vertices, counters), GuidedMove::Guided { offset, guide }))
+        })
     }
 
     fn transition(
@@ -281,43 +300,26 @@ impl Strategy for LinearCaustic {
         to: &PathState,
         mv: &GuidedMove,
     ) -> f64 {
-        if !same_signature(from, to) {
-            return 0.0;
-        }
         let view = &kernel.view;
-        let subset = view.subset(from, mv.offset());
-        let t = match *mv {
-            GuidedMove::Fallback { .. } => {
-                if subset.len() >= 2 {
-                    return 0.0;
-                }
-                Caustic::default().transition(ctx, &kernel.plain, from, to, &())
+        kernel.transition_with(Caustic::default(), ctx, from, to, mv, |subset, guide| {
+            let Some(j) = caustic_pivot(&from.vertices) else { return 0.0 };
+            if caustic_pivot(&to.vertices) != Some(j) {
+                return 0.0;
             }
-            GuidedMove::Guided { guide, .. } => {
-                let Some(j) = caustic_pivot(&from.vertices) else { return 0.0 };
-                if caustic_pivot(&to.vertices) != Some(j) || subset.len() < 2 {
-                    return 0.0;
-                }
-                // The best match of the path the move leaves must be the guide (module docs).
-                let w = view.weights(from, &subset, j - 1, j, &kernel.counts);
-                if best_match(&w).map(|b| subset[b]) != Some(guide) {
-                    return 0.0;
-                }
-                let g_path = &view.paths[guide as usize];
-                let (w1, w2) = Self::directions(from, g_path, j);
-                let (w1_to, _) = Self::directions(to, g_path, j);
-                let (psi, psi_new) = (angle_between(w1, w2), angle_between(w1_to, w2));
-                let stretch = StretchKernel { alpha: view.alpha(&subset) };
-                let g = stretch.density_lambda(psi_new / psi);
-                let t_omega = g / (psi * psi_new.sin());
-                t_omega * retrace_jacobian(&to.vertices, j, 1)
+            // The best match of the path the move leaves must be the guide (module docs).
+            let w = view.weights(from, subset, j - 1, j, &kernel.counts);
+            if best_match(&w).map(|b| subset[b]) != Some(guide) {
+                return 0.0;
             }
-        };
-        if t.is_finite() {
-            t
-        } else {
-            0.0
-        }
+            let g_path = &view.paths[guide as usize];
+            let (w1, w2) = Self::directions(from, g_path, j);
+            let (w1_to, _) = Self::directions(to, g_path, j);
+            let (psi, psi_new) = (angle_between(w1, w2), angle_between(w1_to, w2));
+            let stretch = StretchKernel { alpha: view.alpha(subset) };
+            let g = stretch.density_lambda(psi_new / psi);
+            let t_omega = g / (psi * psi_new.sin());
+            t_omega * retrace_jacobian(&to.vertices, j, 1)
+        })
     }
 
     fn reverse(&self, mv: &GuidedMove) -> GuidedMove {
