@@ -12,6 +12,7 @@ tables exactly as `plexus converge` wrote them.
 import csv
 import json
 import os
+import re
 import statistics
 from collections import defaultdict
 
@@ -124,6 +125,17 @@ def noise_table(scenes_rows):
     return "\n".join(lines)
 
 
+def kept_sections(path):
+    """Sections other scripts own, kept across a regeneration: the text from `<!-- NAME:begin -->` to
+    `<!-- NAME:end -->` in the current page (scripts/bench-pmlt.sh writes its section this way)."""
+    try:
+        with open(path) as f:
+            page = f.read()
+    except OSError:
+        return []
+    return [m.group(0) for m in re.finditer(r"<!-- ([\w-]+):begin -->.*?<!-- \1:end -->", page, re.S)]
+
+
 def main():
     scenes_rows = [(s, read_rows(s)) for s, _, _ in SCENES]
     seeds = sorted({int(r["seed"]) for _, rows in scenes_rows for r in rows})
@@ -198,7 +210,9 @@ def main():
     if os.path.exists(large):
         with open(large) as f:
             out.append(f.read().strip() + "\n")
-    with open(os.path.join(ROOT, "docs", "benchmarks.md"), "w") as f:
+    page = os.path.join(ROOT, "docs", "benchmarks.md")
+    out.extend(block + "\n" for block in kept_sections(page))
+    with open(page, "w") as f:
         f.write("\n".join(out))
 
 
