@@ -15,6 +15,8 @@
 #   SCENES       scene names with a reference in references/ [cornell-box cornell-glossy cornell-glass veach-ajar]
 #   ACCEPTANCE   scenes of the acceptance table              [cornell-glass veach-ajar]
 #   OUT          results directory                           [docs/bench/pmlt]
+#   PORTAL_OFF   on scenes with [[portals]] also run pmlt without its portal perturbation, as the
+#                integrator `pmlt-noportal` of the tables (1) or not (0)  [1]
 #
 # Fairness on a shared machine: each render is one `plexus converge` run of one integrator and one
 # seed (converge's own renderer, error and CSV), and the integrators are interleaved per seed, in
@@ -26,11 +28,12 @@
 # Writes OUT/<scene>-converge.{csv,md} (the CSV is converge's format: `plexus converge
 # scenes/S.toml --replot OUT/S-converge.csv --out-dir DIR` redraws tables and plot),
 # OUT/<scene>-cpu.csv, OUT/<scene>-strategies.json (the acceptance renders' strategy statistics),
-# OUT/machine.txt, and then the section of docs/benchmarks.md between the markers
+# OUT/<scene>-machine.txt, and then the section of docs/benchmarks.md between the markers
 # `<!-- pmlt-bench:begin -->` and `<!-- pmlt-bench:end -->` (scripts/bench_pmlt_section.py; the
 # rest of the page is left as it is). OUT/reading.md (the interpretation) is written by hand and
 # must be revisited when the numbers change.
-# Cost: 5 integrators × 3 seeds × (3 × 12 s + 20 s) + 2 × 3 acceptance renders ≈ 17 min of wall time.
+# Cost: 5 integrators × 3 seeds × 3 × 12 s + 6 × 3 × 20 s on the door (with pmlt-noportal) and 9
+# acceptance renders ≈ 20 min of wall time.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 time_budget=${TIME:-12}
@@ -41,45 +44,73 @@ read -r -a integrators <<< "${INTEGRATORS:-pt bdpt mmlt rjmlt pmlt}"
 read -r -a scenes <<< "${SCENES:-cornell-box cornell-glossy cornell-glass veach-ajar}"
 acceptance=${ACCEPTANCE:-cornell-glass veach-ajar}
 out=${OUT:-docs/bench/pmlt}
+portal_off=${PORTAL_OFF:-1}
 source scripts/plexus-binary.sh
 plexus_binary bench-pmlt
 mkdir -p "$out"
 tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
+trap 'rm -rf "$tmp" scenes/.bench-pmlt-*.toml' EXIT
 
 load1() { cut -d' ' -f1 /proc/loadavg; }
-{
+# Where and when a scene's renders ran (one file per scene, so that a rerun of some scenes keeps
+# the others' record).
+machine() {
     printf '%s, %s cores, %s GiB; plexus at commit %s; run %s UTC; %s render threads; load average %s when it started\n' \
         "$(sed -n 's/^model name[[:space:]]*: //p' /proc/cpuinfo | head -n 1)" "$(nproc)" \
         "$(awk '/MemTotal/ {printf "%.0f", $2 / 1048576}' /proc/meminfo)" \
         "$(git rev-parse --short HEAD 2>/dev/null || echo unknown)" "$(date -u '+%Y-%m-%d %H:%M')" "$threads" "$(load1)"
-} > "$out/machine.txt"
+}
 
 budget_of() { if [[ $1 == veach-ajar ]]; then echo "$door_time"; else echo "$time_budget"; fi; }
 
+# pmlt without the portal perturbation: a copy of the scene beside it (mesh paths stay valid) whose
+# [integrator] table is pmlt's with portal = 0 (converge gives the scene's own integrator its table).
+noportal_scene() {
+    python3 - "scenes/$1.toml" "scenes/.bench-pmlt-$1.toml" <<'PY'
+import re, sys
+text = open(sys.argv[1]).read()
+table = '[integrator]\ntype = "pmlt"\nportal = 0.0\n\n'
+text, n = re.subn(r"^\[integrator\]\n(?:(?!\[).*\n)*", table, text, flags=re.M)
+if n == 0:
+    text += "\n" + table
+open(sys.argv[2], "w").write(text)
+PY
+}
+
 for scene in "${scenes[@]}"; do
     budget=$(budget_of "$scene")
+    machine > "$out/$scene-machine.txt"
     csv="$out/$scene-converge.csv"
     cpu="$out/$scene-cpu.csv"
     echo "integrator,seed,budget,wall_time,samples_or_mutations,rays,mse,relmse,nonfinite_dropped" > "$csv"
     echo "integrator,seed,budget,cpu_s,process_wall_s,load1_before,load1_after" > "$cpu"
-    count=${#integrators[@]}
+    runs=("${integrators[@]}")
+    if [[ $portal_off == 1 ]] && grep -q '^\[\[portals\]\]' "scenes/$scene.toml"; then
+        noportal_scene "$scene"
+        runs+=(pmlt-noportal)
+    fi
+    count=${#runs[@]}
     for seed in $(seq 0 $((seeds - 1))); do
         for i in $(seq 0 $((count - 1))); do
-            integ=${integrators[$(((i + seed) % count))]}
+            integ=${runs[$(((i + seed) % count))]}
             dir="$tmp/$scene-$integ-$seed"
             mkdir -p "$dir"
+            file="scenes/$scene.toml" name=$integ
+            if [[ $integ == pmlt-noportal ]]; then
+                file="scenes/.bench-pmlt-$scene.toml" name=pmlt
+            fi
             before=$(load1)
-            /usr/bin/time -f '%U %S %e' -o "$dir/time" "$plexus" converge "scenes/$scene.toml" \
-                --reference "references/$scene.exr" --integrators "$integ" --times "$budget" --seeds 1 \
+            /usr/bin/time -f '%U %S %e' -o "$dir/time" "$plexus" converge "$file" \
+                --reference "references/$scene.exr" --integrators "$name" --times "$budget" --seeds 1 \
                 --first-seed "$seed" --threads "$threads" --set max_depth=8 --out-dir "$dir" 2> "$dir/log"
             after=$(load1)
-            tail -n +2 "$dir/$scene-converge.csv" >> "$csv"
+            tail -n +2 "$dir"/*-converge.csv | sed "s/^pmlt,/$integ,/" >> "$csv"
             read -r user sys wall < "$dir/time"
             echo "$integ,$seed,$budget,$(echo "$user + $sys" | bc),$wall,$before,$after" >> "$cpu"
-            echo "$scene seed $seed $integ: $(tail -n 1 "$dir/$scene-converge.csv"); CPU $user+$sys s; load $before -> $after" >&2
+            echo "$scene seed $seed $integ: $(tail -n 1 "$csv"); CPU $user+$sys s; load $before -> $after" >&2
         done
     done
+    rm -f "scenes/.bench-pmlt-$scene.toml"
     # The Markdown tables of converge (one budget: its plot would be one point per integrator).
     "$plexus" converge "scenes/$scene.toml" --replot "$csv" --out-dir "$out" 2> /dev/null
     rm -f "$out/$scene-converge.png"
@@ -94,7 +125,19 @@ for scene in $acceptance; do
         "$plexus" reference "scenes/$scene.toml" --integrator pmlt --time "$budget" --seed "$seed" \
             --threads "$threads" --resolution "$res" --set max_depth=8 --out "$tmp/$scene-pmlt-$seed.exr" 2> /dev/null
     done
-    python3 - "$out/$scene-strategies.json" "$tmp/$scene"-pmlt-*.json <<'PY'
+    variants=(pmlt)
+    if [[ $portal_off == 1 ]] && grep -q '^\[\[portals\]\]' "scenes/$scene.toml"; then
+        for seed in $(seq 0 $((seeds - 1))); do
+            "$plexus" reference "scenes/$scene.toml" --integrator pmlt --time "$budget" --seed "$seed" \
+                --threads "$threads" --resolution "$res" --set max_depth=8 --set portal=0 \
+                --out "$tmp/$scene-noportal-$seed.exr" 2> /dev/null
+        done
+        variants+=(noportal)
+    fi
+    for variant in "${variants[@]}"; do
+        target="$out/$scene-strategies.json"
+        [[ $variant == noportal ]] && target="$out/$scene-noportal-strategies.json"
+        python3 - "$target" "$tmp/$scene-$variant"-*.json <<'PY'
 import json, sys
 runs = []
 for path in sys.argv[2:]:
@@ -106,6 +149,7 @@ for path in sys.argv[2:]:
 with open(sys.argv[1], "w") as f:
     json.dump(runs, f, indent=1)
 PY
+    done
 done
 
 python3 scripts/bench_pmlt_section.py "$out"

@@ -5,7 +5,7 @@ Usage: scripts/bench_pmlt_section.py [OUT]   (OUT defaults to docs/bench/pmlt)
 
 Reads OUT/<scene>-converge.csv (`plexus converge`'s rows, one render each), OUT/<scene>-cpu.csv (each
 render's CPU time and the load around it), OUT/<scene>-strategies.json (pmlt's strategy statistics),
-OUT/machine.txt and OUT/reading.md (the hand-written interpretation), and replaces the text between
+OUT/<scene>-machine.txt and OUT/reading.md (the hand-written interpretation), and replaces the text between
 the markers `<!-- pmlt-bench:begin -->` and `<!-- pmlt-bench:end -->` of docs/benchmarks.md (appending
 the markers at the end of the page the first time). Nothing else on the page changes.
 """
@@ -49,7 +49,7 @@ def error_table(data, integrators, metric, title):
             m, s = means[i]
             text = "%.3e ± %.1e" % (m, s)
             cells.append("**%s**" % text if i == best else text)
-        others = [means[i][0] for i in means if i != "pmlt"]
+        others = [means[i][0] for i in means if not i.startswith("pmlt")]
         ratio = "%.2f×" % (means["pmlt"][0] / min(others)) if "pmlt" in means and others else "—"
         budget = rows[0]["budget"]
         lines.append("| %s (%s s) | %s | %s |" % (scene, budget, " | ".join(cells), ratio))
@@ -68,11 +68,20 @@ def work_table(data, integrators):
         rate = defaultdict(list)
         for r in rows:
             rate[r["integrator"]].append(float(r["samples_or_mutations"]) / float(r["wall_time"]))
-        cells = ["%.1f s, %.3g/s" % (statistics.mean(c[i]), statistics.mean(rate[i])) if i in c else "—"
-                 for i in integrators]
+        cells = ["%.1f s (min %.1f), %.3g/s" % (statistics.mean(c[i]), min(c[i]), statistics.mean(rate[i]))
+                 if i in c else "—" for i in integrators]
         loads = [float(r[k]) for r in cpu for k in ("load1_before", "load1_after")]
         load = "%.1f–%.1f (median %.1f)" % (min(loads), max(loads), statistics.median(loads))
         lines.append("| %s | %s | %s |" % (scene, " | ".join(cells), load))
+    starved = []
+    for scene, rows, cpu in data:
+        median = statistics.median(float(r["cpu_s"]) for r in cpu)
+        starved += ["%s %s seed %s (%.1f s of CPU, the scene's median %.1f s)" % (
+            scene, r["integrator"], r["seed"], float(r["cpu_s"]), median)
+            for r in cpu if float(r["cpu_s"]) < 0.5 * median]
+    lines.append("")
+    lines.append("Renders that got less than half their scene's median CPU time (a load spike; their errors are in "
+                 "the means above): %s." % ("; ".join(starved) if starved else "none"))
     return "\n".join(lines)
 
 
@@ -127,25 +136,29 @@ def section(out):
                 integrators.append(r["integrator"])
         data.append((scene, rows, cpu))
     seeds = sorted({int(r["seed"]) for _, rows, _ in data for r in rows})
-    with open(os.path.join(out, "machine.txt")) as f:
-        machine = f.read().strip()
+    machine = []
+    for scene, _, _ in data:
+        with open(os.path.join(out, scene + "-machine.txt")) as f:
+            machine.append("- %s: %s" % (scene, f.read().strip()))
     with open(os.path.join(out, "reading.md")) as f:
         reading = f.read().strip()
-    acceptance_scenes = [s for s in SCENES if os.path.exists(os.path.join(out, s + "-strategies.json"))]
+    acceptance_scenes = [v for s in SCENES for v in (s, s + "-noportal")
+                         if os.path.exists(os.path.join(out, v + "-strategies.json"))]
     rel = os.path.relpath(out, os.path.join(ROOT, "docs"))
     parts = [
         "## Path-space MLT (`pmlt`, issues 13 and 14)\n",
-        "`pmlt` (bidirectional mutation with Veach's lens, caustic and multi-chain perturbations, all at their\n"
-        "defaults) against %s at equal wall time on the four benchmark scenes, %d seeds (%s), every\n"
+        "`pmlt` (bidirectional mutation with Veach's lens, caustic and multi-chain perturbations, and the portal\n"
+        "perturbation where the scene has portals, all at their defaults; `pmlt-noportal`: the same with\n"
+        "`portal = 0`, on the door scene, whose doorway has a portal) against %s at equal wall time on the four benchmark scenes, %d seeds (%s), every\n"
         "integrator at `max_depth = 8` as the references, 2 threads, at the references' resolution. Regenerate\n"
         "(this section only; the rest of the page is not touched):\n"
-        % (", ".join("`%s`" % i for i in integrators if i != "pmlt"), len(seeds), ", ".join(map(str, seeds))),
-        "```\nscripts/bench-pmlt.sh        # TIME=12 DOOR_TIME=20 SEEDS=3 THREADS=2 by default; ~17 min of wall time\n```\n",
+        % (", ".join("`%s`" % i for i in integrators if not i.startswith("pmlt")), len(seeds), ", ".join(map(str, seeds))),
+        "```\nscripts/bench-pmlt.sh        # TIME=12 DOOR_TIME=20 SEEDS=3 THREADS=2 by default; ~20 min of wall time\n```\n",
         "Each render is one `plexus converge` run of one integrator and one seed; the integrators are\n"
         "interleaved within each seed, in an order rotated from seed to seed, so that a change of the machine's\n"
         "load hits them alike. Per-render rows: `docs/%s/<scene>-converge.csv` (converge's CSV; `--replot` redraws\n"
         "its tables) and `<scene>-cpu.csv` (CPU time and load around each render).\n" % rel,
-        "**Machine** (recorded when the script ran): %s.\n" % machine,
+        "**Machine** (recorded when each scene's renders started):\n\n%s\n" % "\n".join(machine),
         "**On a shared machine** equal wall time is not equal work: the CPU column below says how much each\n"
         "render actually got. To measure on a quiet machine, run the same command with nothing else running\n"
         "(`uptime` below 1): each render then gets about 2 × its budget of CPU time, and the ratios are the ones\n"
@@ -155,7 +168,7 @@ def section(out):
                     "relMSE (ε = 1e-2) against the reference, mean ± sample std over the seeds; bold: lowest:") + "\n",
         error_table(data, integrators, "mse", "MSE, mean ± sample std over the seeds:") + "\n",
         work_table(data, integrators) + "\n",
-        "**Per-strategy acceptance** of `pmlt` (%s; the render JSON's `integrator_stats.strategies`, summed over\n"
+        "**Per-strategy acceptance** of `pmlt` (%s; `-noportal`: `portal = 0`; the render JSON's `integrator_stats.strategies`, summed over\n"
         "one render per seed at the same budget and resolution). Share: iterations that chose the strategy;\n"
         "the other columns are fractions of those iterations:\n" % ", ".join(acceptance_scenes),
         acceptance_table(out, acceptance_scenes) + "\n",
