@@ -102,9 +102,10 @@ for scene in "${scenes[@]}"; do
             before=$(load1)
             /usr/bin/time -f '%U %S %e' -o "$dir/time" "$plexus" converge "$file" \
                 --reference "references/$scene.exr" --integrators "$name" --times "$budget" --seeds 1 \
-                --first-seed "$seed" --threads "$threads" --set max_depth=8 --out-dir "$dir" 2> "$dir/log"
+                --first-seed "$seed" --threads "$threads" --set max_depth=8 --out-dir "$dir" 2> "$dir/log" ||
+                { cat "$dir/log" >&2; exit 1; }
             after=$(load1)
-            tail -n +2 "$dir"/*-converge.csv | sed "s/^pmlt,/$integ,/" >> "$csv"
+            tail -n +2 "$dir/$(basename "$file" .toml)-converge.csv" | sed "s/^pmlt,/$integ,/" >> "$csv"
             read -r user sys wall < "$dir/time"
             echo "$integ,$seed,$budget,$(echo "$user + $sys" | bc),$wall,$before,$after" >> "$cpu"
             echo "$scene seed $seed $integ: $(tail -n 1 "$csv"); CPU $user+$sys s; load $before -> $after" >&2
