@@ -1,14 +1,18 @@
 #!/usr/bin/env bash
-# The portal perturbation's benchmark (issue 15; the portal paper's Sec. 5 and Fig. 4): pmlt with
-# and without the portal perturbation at equal time, relative RMSE against the committed
+# The portal perturbation's benchmark (issue 15; the portal paper's Sec. 5–6, Fig. 4, 5 and 8):
+# pmlt with and without the portal perturbation at equal time, relative RMSE against the committed
 # references over several seeds, and chain 0's image-plane trace with the integrated
 # autocorrelation time of its raster y on portal-planes.
 #
-# Configurations (the paper's): "MLT" = bidirectional 1/2 + local 1/2; "Ours" = bidirectional 1/2
-# + the local half split between the local perturbation and the portal perturbation. With
-# LENS=1 the local perturbation is Veach's lens perturbation (issue 14's `lens` weight, from the
-# perturb branch); with LENS=0 (default until it is merged) there is no local perturbation in
-# "MLT" (bidirectional alone) and "Ours" is bidirectional 1/2 + portal 1/2.
+# Configurations (the paper's): "MLT" = bidirectional 1/2 + lens perturbation 1/2; "Ours" =
+# bidirectional 1/2 + the local half split between the lens and the portal perturbation (1/4
+# each on a path that crosses a portal; pmlt shares a perturbation weight among the suitable
+# perturbations, so the weights are bidirectional 2, lens 2, portal 2; on a path that crosses no
+# portal "Ours" is "MLT"). The caustic and multi-chain perturbations are off in both.
+#
+# The machine may be shared: the renders are interleaved (for each seed, each scene, MLT then
+# Ours) so that both configurations see the same load, and the 1-minute load average is recorded
+# before every render (its median and range are printed).
 #
 # Usage: scripts/bench-portals.sh
 # Environment (defaults in brackets):
@@ -16,20 +20,20 @@
 #   TIME     seconds per render          [20]
 #   SEEDS    number of seeds             [5]
 #   THREADS  render threads              [2]
-#   LENS     include the lens perturbation (1) or not (0) [0]
-#   SCENES   scene names with a reference in references/ [portal-planes veach-ajar]
-#   TRACE    mutations of the trace (every 500th point kept) [250000]
+#   SCENES   scene names with a reference in references/ [portal-planes breakfast-window veach-ajar]
+#   TRACE    mutations of the trace (every EVERY-th point kept) [250000]
+#   EVERY    trace spacing in mutations  [50]
 #   OUTDIR   images, JSON, CSV           [/tmp/bench-portals]
-# Prints a Markdown table (mean rRMSE over the seeds ± its standard error, and the ratio) and
-# the traces' τ_y.
+# Prints a Markdown table (mean rRMSE over the seeds ± its standard error, the ratio Ours/MLT with
+# the standard error of the per-seed difference) and the traces' τ_y.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 time_budget=${TIME:-20}
 seeds=${SEEDS:-5}
 threads=${THREADS:-2}
-lens=${LENS:-0}
-scenes=${SCENES:-portal-planes veach-ajar}
+scenes=${SCENES:-portal-planes breakfast-window veach-ajar}
 trace_mutations=${TRACE:-250000}
+every=${EVERY:-50}
 outdir=${OUTDIR:-/tmp/bench-portals}
 source scripts/plexus-binary.sh
 plexus_binary bench-portals scenes/portal-planes.toml
@@ -37,17 +41,12 @@ mkdir -p "$outdir"
 cargo build --release --quiet --example pmlt-trace
 trace_bin="${CARGO_TARGET_DIR:-target}/release/examples/pmlt-trace"
 
-if [[ "$lens" == 1 ]]; then
-    mlt=(--set bidirectional=2.0 --set lens=2.0 --set portal=0.0)
-    ours=(--set bidirectional=2.0 --set lens=1.0 --set portal=1.0)
-    mlt_trace=(bidirectional=2.0 lens=2.0 portal=0.0)
-    ours_trace=(bidirectional=2.0 lens=1.0 portal=1.0)
-else
-    mlt=(--set bidirectional=1.0 --set portal=0.0)
-    ours=(--set bidirectional=1.0 --set portal=1.0)
-    mlt_trace=(bidirectional=1.0 portal=0.0)
-    ours_trace=(bidirectional=1.0 portal=1.0)
-fi
+common=(bidirectional=2.0 lens=2.0 caustic=0.0 multi_chain=0.0)
+mlt_set=("${common[@]}" portal=0.0)
+ours_set=("${common[@]}" portal=2.0)
+set_flags() { for kv in "$@"; do printf -- '--set\n%s\n' "$kv"; done; }
+mapfile -t mlt < <(set_flags "${mlt_set[@]}")
+mapfile -t ours < <(set_flags "${ours_set[@]}")
 
 # A scene at its reference's resolution: a copy beside the original (mesh paths stay valid).
 scene_at_reference() {
@@ -59,38 +58,57 @@ scene_at_reference() {
     echo "$copy"
 }
 
-echo "| scene | config | rRMSE (mean ± s.e., $seeds seeds, ${time_budget} s each) | mutations/s |"
-echo "| --- | --- | --- | --- |"
-for name in $scenes; do
-    scene=$(scene_at_reference "$name")
-    for config in mlt ours; do
-        declare -n sets=$config
-        errors=()
-        rates=()
-        for seed in $(seq 1 "$seeds"); do
+results="$outdir/results.tsv"
+: > "$results"
+for name in $scenes; do scene_at_reference "$name" >/dev/null; done
+trap 'for name in $scenes; do rm -f "scenes/.bench-portals-$name.toml"; done' EXIT
+for seed in $(seq 1 "$seeds"); do
+    for name in $scenes; do
+        scene="scenes/.bench-portals-$name.toml"
+        for config in mlt ours; do
+            declare -n sets=$config
             out="$outdir/$name-$config-$seed.exr"
+            load=$(cut -d' ' -f1 /proc/loadavg)
             nice "$plexus" render "$scene" --integrator pmlt --time "$time_budget" --threads "$threads" \
                 --seed "$seed" "${sets[@]}" --out "$out" >/dev/null 2>&1
-            errors+=("$("$plexus" compare "$out" "references/$name.exr" --json |
-                python3 -c "import json,sys,math; print(math.sqrt(json.load(sys.stdin)['relmse']))")")
-            rates+=("$(python3 -c "import json; d=json.load(open('${out%.exr}.json')); print(d['samples']/d['wall_time_s'])")")
+            error=$("$plexus" compare "$out" "references/$name.exr" --json |
+                python3 -c "import json,sys,math; print(math.sqrt(json.load(sys.stdin)['relmse']))")
+            rate=$(python3 -c "import json; d=json.load(open('${out%.exr}.json')); print(d['samples']/d['wall_time_s'])")
+            printf '%s\t%s\t%s\t%s\t%s\t%s\n' "$name" "$config" "$seed" "$error" "$rate" "$load" >> "$results"
         done
-        python3 - "$name" "$config" "${errors[*]}" "${rates[*]}" <<'PY'
-import sys, statistics as st
-name, config, errors, rates = sys.argv[1], sys.argv[2], [float(x) for x in sys.argv[3].split()], [float(x) for x in sys.argv[4].split()]
-se = st.stdev(errors) / len(errors) ** 0.5 if len(errors) > 1 else float("nan")
-print(f"| {name} | {config} | {st.mean(errors):.4f} ± {se:.4f} | {st.mean(rates):.3g} |")
-PY
     done
-    rm -f "$scene"
 done
 
+python3 - "$results" "$seeds" "$time_budget" <<'PY'
+import sys, statistics as st
+rows = [l.split("\t") for l in open(sys.argv[1]).read().splitlines()]
+seeds, budget = sys.argv[2], sys.argv[3]
+loads = [float(r[5]) for r in rows]
+print(f"load average (1 min) before the renders: median {st.median(loads):.1f}, range {min(loads):.1f}–{max(loads):.1f}")
+print()
+print(f"| scene | MLT (bidirectional + lens) | Ours (+ portal) | Ours / MLT | mutations/s MLT, Ours |")
+print("| --- | ---: | ---: | ---: | ---: |")
+for name in dict.fromkeys(r[0] for r in rows):
+    by = {c: {int(r[2]): (float(r[3]), float(r[4])) for r in rows if r[0] == name and r[1] == c} for c in ("mlt", "ours")}
+    common = sorted(set(by["mlt"]) & set(by["ours"]))
+    def stat(c):
+        e = [by[c][s][0] for s in common]
+        return st.mean(e), (st.stdev(e) / len(e) ** 0.5 if len(e) > 1 else float("nan"))
+    (m, sm), (o, so) = stat("mlt"), stat("ours")
+    d = [by["ours"][s][0] - by["mlt"][s][0] for s in common]
+    sd = st.stdev(d) / len(d) ** 0.5 if len(d) > 1 else float("nan")
+    rate = lambda c: st.mean(by[c][s][1] for s in common)
+    print(f"| {name} | {m:.4f} ± {sm:.4f} | {o:.4f} ± {so:.4f} | {o / m:.2f} (difference {o - m:+.4f} ± {sd:.4f}) | "
+          f"{rate('mlt'):.3g}, {rate('ours'):.3g} |")
+print(f"\n({len(common)} seeds, {budget} s per render, rRMSE = sqrt(relMSE) of plexus compare)")
+PY
+
 echo
-echo "Image-plane traces on portal-planes (chain 0, one point per 500 mutations; $outdir/trace-*.csv):"
+echo "Image-plane traces on portal-planes (chain 0, one point per $every mutations; $outdir/trace-*.csv):"
 for config in mlt ours; do
-    declare -n args=${config}_trace
+    declare -n args=${config}_set
     printf '%s: ' "$config"
-    nice "$trace_bin" scenes/portal-planes.toml 1 "$trace_mutations" 500 "$outdir/trace-$config.csv" \
+    nice "$trace_bin" scenes/portal-planes.toml 1 "$trace_mutations" "$every" "$outdir/trace-$config.csv" \
         bootstrap=20000 "${args[@]}"
 done
 python3 scripts/portal_trace_svg.py "$outdir/portal-trace.svg" "MLT=$outdir/trace-mlt.csv" "Ours=$outdir/trace-ours.csv"

@@ -28,3 +28,10 @@ done
 # light subpaths find far more often than pt's paths; 2× the samples at its 32×32 test resolution.
 "$PLEXUS" reference scenes/portal-planes.toml --integrator bdpt --spp $((SPP * 2)) --seed "$SEED" \
     --resolution 32x32 --set max_depth=8 --out references/portal-planes.exr
+# breakfast-window (issue 15): the breakfast room lit by the procedural sky (scenes/environment/
+# sky.exr, its sun shining in) through its one window, at its 32×32 test resolution. pt with
+# next-event estimation of the environment finds the sun through the window directly; light
+# subpaths from the environment would mostly miss the window. 8× the samples: the share test's
+# reference noise must stay well below the chains'.
+"$PLEXUS" reference scenes/breakfast-window.toml --integrator pt --spp $((SPP * 8)) --seed "$SEED" \
+    --resolution 32x32 --set max_depth=8 --out references/breakfast-window.exr
