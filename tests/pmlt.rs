@@ -23,8 +23,9 @@ use std::path::Path;
 
 mod common;
 use common::agreement::{
-    assert_brightness_agrees, assert_shares_agree, mean_and_variance_of_mean, region_means, render_regions,
-    share_agreement, shares, GRID, POWER_SHARE_FLOOR, REGIONS, RENDERS, SHARE_ERROR, Z_CRITICAL,
+    assert_brightness_agrees, assert_shares_agree, mean_and_variance_of_mean, region_means,
+    relative_noise_of_region_means, render_regions, share_agreement, shares, POWER_SHARE_FLOOR, RENDERS, SHARE_ERROR,
+    Z_CRITICAL,
 };
 use common::binary::{plexus, stderr, temp_dir, tiny_scene};
 
@@ -36,7 +37,6 @@ use plexus::integrator::path_space::portal::PortalPerturbation;
 use plexus::integrator::path_space::Pmlt;
 use plexus::integrator::{create, Budget, Integrator, NoProgress, RenderJob};
 use plexus::scene::{load_scene, Scene};
-use plexus::spectrum::luminance;
 
 fn scene(name: &str, size: u32) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));
@@ -173,29 +173,6 @@ fn pmlt_agrees_with_bdpt_on_cornell_glass() {
 #[ignore = "three more sets of 16 renders: beyond the test budget (run with --ignored)"]
 fn pmlt_each_perturbation_agrees_with_bdpt_on_cornell_glass() {
     pmlt_agrees_with("cornell-glass", &[LENS, CAUSTIC, MULTI_CHAIN], 1024, ("bdpt", 256));
-}
-
-/// The luminance noise of each region's mean in `image` (regions as `region_means`), relative to
-/// the image mean, from second differences of horizontally adjacent pixels: for independent pixel
-/// noise σ², E[(v_{x+1} − 2v_x + v_{x−1})²] = 6σ², and a smooth image gradient drops out to first
-/// order (the light's falloff across a region is nearly linear at 32×32; what is left of its
-/// curvature only inflates the estimate, which makes the test below more conservative).
-fn relative_noise_of_region_means(image: &Image) -> Vec<f64> {
-    let lum = |x: usize, y: usize| luminance(image.get(x, y)) as f64;
-    let mean = region_means(image)[REGIONS];
-    let region = |x: usize, y: usize| (y * GRID / image.height) * GRID + x * GRID / image.width;
-    let (mut sq, mut diffs, mut pixels) = (vec![0.0; REGIONS], vec![0usize; REGIONS], vec![0usize; REGIONS]);
-    for y in 0..image.height {
-        for x in 0..image.width {
-            let r = region(x, y);
-            pixels[r] += 1;
-            if x >= 1 && x + 1 < image.width && region(x - 1, y) == r && region(x + 1, y) == r {
-                sq[r] += (lum(x + 1, y) - 2.0 * lum(x, y) + lum(x - 1, y)).powi(2);
-                diffs[r] += 1;
-            }
-        }
-    }
-    (0..REGIONS).map(|r| (sq[r] / (6.0 * diffs[r] as f64) / pixels[r] as f64).sqrt() / mean).collect()
 }
 
 /// The region means of 16 renders of portal-planes by pmlt with `params` (seeds as
