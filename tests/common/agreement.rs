@@ -28,16 +28,22 @@ pub const Z_CRITICAL: f64 = 5.0;
 
 /// Luminance means of the GRID×GRID regions, then of the whole image.
 pub fn region_means(image: &Image) -> Vec<f64> {
-    let mut sums = [0.0f64; REGIONS + 1];
-    let mut counts = [0usize; REGIONS + 1];
+    region_means_on(image, GRID)
+}
+
+/// Luminance means of the `grid`×`grid` regions (row by row), then of the whole image.
+pub fn region_means_on(image: &Image, grid: usize) -> Vec<f64> {
+    let regions = grid * grid;
+    let mut sums = vec![0.0f64; regions + 1];
+    let mut counts = vec![0usize; regions + 1];
     for y in 0..image.height {
         for x in 0..image.width {
             let v = luminance(image.get(x, y)) as f64;
-            let r = (y * GRID / image.height) * GRID + x * GRID / image.width;
+            let r = (y * grid / image.height) * grid + x * grid / image.width;
             sums[r] += v;
             counts[r] += 1;
-            sums[REGIONS] += v;
-            counts[REGIONS] += 1;
+            sums[regions] += v;
+            counts[regions] += 1;
         }
     }
     sums.iter().zip(&counts).map(|(s, &c)| s / c.max(1) as f64).collect()
@@ -118,15 +124,16 @@ pub fn assert_agree(what: &str, (ma, va): (Vec<f64>, Vec<f64>), (mb, vb): (Vec<f
     assert!(worst < Z_CRITICAL, "{what}: disagreement (|z| = {worst:.2} ≥ {Z_CRITICAL})\n{report}");
 }
 
-/// Each render's region shares: region mean ÷ the same render's image mean (the regions have
+/// Each render's region shares (its region means, then its image mean, as [`region_means_on`]
+/// gives them): region mean ÷ the same render's image mean (the regions have
 /// equal pixel counts up to rounding, so the shares average about 1). A black render has no shares.
 pub fn shares(renders: &[Vec<f64>]) -> Vec<Vec<f64>> {
     renders
         .iter()
         .map(|r| {
-            let image = r[REGIONS];
-            assert!(image > 0.0, "a black render has no region shares");
-            r[..REGIONS].iter().map(|m| m / image).collect()
+            let (regions, image) = r.split_at(r.len() - 1);
+            assert!(image[0] > 0.0, "a black render has no region shares");
+            regions.iter().map(|m| m / image[0]).collect()
         })
         .collect()
 }
@@ -176,8 +183,8 @@ pub const SHARE_ERROR: f64 = 0.10;
 pub fn share_agreement(method: &[Vec<f64>], reference: &[Vec<f64>]) -> ShareAgreement {
     let (ma, va) = mean_and_variance_of_mean(&shares(method));
     let (mb, vb) = mean_and_variance_of_mean(&shares(reference));
-    let z: Vec<f64> = (0..REGIONS).map(|r| welch_z(ma[r], va[r], mb[r], vb[r])).collect();
-    let power_z = (0..REGIONS).map(|r| welch_z(mb[r] * (1.0 + SHARE_ERROR), va[r], mb[r], vb[r])).collect();
+    let z: Vec<f64> = (0..ma.len()).map(|r| welch_z(ma[r], va[r], mb[r], vb[r])).collect();
+    let power_z = (0..ma.len()).map(|r| welch_z(mb[r] * (1.0 + SHARE_ERROR), va[r], mb[r], vb[r])).collect();
     let worst_z = z.iter().fold(0.0f64, |w, z| w.max(z.abs()));
     ShareAgreement { method: ma, reference: mb, z, power_z, worst_z }
 }
@@ -191,19 +198,7 @@ pub const POWER_SHARE_FLOOR: f64 = 0.25;
 /// average share would show a `SHARE_ERROR` relative error of its share with |z| > Z_CRITICAL),
 /// then |z| < Z_CRITICAL for every region's share. Returns the statistics.
 pub fn assert_shares_agree(what: &str, method: &[Vec<f64>], reference: &[Vec<f64>]) -> ShareAgreement {
-    let a = share_agreement(method, reference);
-    let report = a.report();
-    println!("{what}: region shares, worst |z| = {:.2}\n{report}", a.worst_z);
-    let weak: Vec<usize> =
-        (0..REGIONS).filter(|&r| a.reference[r] >= POWER_SHARE_FLOOR && !(a.power_z[r] > Z_CRITICAL)).collect();
-    assert!(
-        weak.is_empty(),
-        "{what}: the share test is too weak: a {:.0}% share error in regions {weak:?} would not reach |z| = \
-         {Z_CRITICAL}\n{report}",
-        100.0 * SHARE_ERROR
-    );
-    assert!(a.worst_z < Z_CRITICAL, "{what}: region shares disagree (|z| = {:.2} ≥ {Z_CRITICAL})\n{report}", a.worst_z);
-    a
+    check_shares(what, share_agreement(method, reference))
 }
 
 /// The image means (the normalisation b of a Markov chain method) of a method's renders against a
@@ -228,4 +223,86 @@ pub fn assert_brightness_agrees(what: &str, method: &[Vec<f64>], reference: &[Ve
     );
     assert!(z.abs() < Z_CRITICAL, "{what}: brightness disagrees (|z| = {:.2} ≥ {Z_CRITICAL})", z.abs());
     z
+}
+
+/// The luminance noise of each region's mean in `image` (regions as [`region_means`]), relative to
+/// the image mean, from second differences of horizontally adjacent pixels: for independent pixel
+/// noise σ², E[(v_{x+1} − 2v_x + v_{x−1})²] = 6σ², and a smooth image gradient drops out to first
+/// order (the light's falloff across a region is nearly linear; what is left of its curvature and
+/// of the edges inside a region only inflates the estimate, which makes a test that adds it to its
+/// variance more conservative).
+pub fn relative_noise_of_region_means(image: &Image) -> Vec<f64> {
+    relative_noise_of_region_means_on(image, GRID)
+}
+
+/// [`relative_noise_of_region_means`] for `grid`×`grid` regions.
+pub fn relative_noise_of_region_means_on(image: &Image, grid: usize) -> Vec<f64> {
+    let regions = grid * grid;
+    let lum = |x: usize, y: usize| luminance(image.get(x, y)) as f64;
+    let mean = region_means_on(image, grid)[regions];
+    let region = |x: usize, y: usize| (y * grid / image.height) * grid + x * grid / image.width;
+    let (mut sq, mut diffs, mut pixels) = (vec![0.0; regions], vec![0usize; regions], vec![0usize; regions]);
+    for y in 0..image.height {
+        for x in 0..image.width {
+            let r = region(x, y);
+            pixels[r] += 1;
+            if x >= 1 && x + 1 < image.width && region(x - 1, y) == r && region(x + 1, y) == r {
+                sq[r] += (lum(x + 1, y) - 2.0 * lum(x, y) + lum(x - 1, y)).powi(2);
+                diffs[r] += 1;
+            }
+        }
+    }
+    (0..regions).map(|r| (sq[r] / (6.0 * diffs[r] as f64) / pixels[r] as f64).sqrt() / mean).collect()
+}
+
+/// Region shares of a method's renders against one committed reference image (any resolution of
+/// the same camera: the film's box filter makes a region's mean independent of the pixel count),
+/// the reference's own noise estimated from its pixels ([`relative_noise_of_region_means`]) as the
+/// reference side's variance: z = (m − m_ref)/√(v + v_ref) per region, with the same bound
+/// (`Z_CRITICAL`) and power figure (`SHARE_ERROR`) as [`share_agreement`]. The image mean's own
+/// noise is left out of v_ref: a share divides it out, and at the references' 67 million samples
+/// it is far below a region's.
+pub fn image_share_agreement(method: &[Vec<f64>], reference: &Image, grid: usize) -> ShareAgreement {
+    let regions = grid * grid;
+    assert_eq!(method[0].len(), regions + 1, "the method's regions are not {grid}×{grid}");
+    let means = region_means_on(reference, grid);
+    let reference_shares: Vec<f64> = means[..regions].iter().map(|m| m / means[regions]).collect();
+    let noise = relative_noise_of_region_means_on(reference, grid);
+    let (ma, va) = mean_and_variance_of_mean(&shares(method));
+    let sd: Vec<f64> = (0..regions).map(|r| (va[r] + noise[r] * noise[r]).sqrt()).collect();
+    let z: Vec<f64> = (0..regions).map(|r| (ma[r] - reference_shares[r]) / sd[r]).collect();
+    let power_z = (0..regions).map(|r| SHARE_ERROR * reference_shares[r] / sd[r]).collect();
+    let worst_z = z.iter().fold(0.0f64, |w, z| w.max(z.abs()));
+    let ratios: Vec<String> = (0..regions).map(|r| format!("{:.2}", noise[r] / va[r].sqrt())).collect();
+    println!("the reference's noise over the method's standard error by region: {}", ratios.join(" "));
+    ShareAgreement { method: ma, reference: reference_shares, z, power_z, worst_z }
+}
+
+/// [`image_share_agreement`] asserted as [`assert_shares_agree`] asserts [`share_agreement`]: the
+/// power check for every region holding at least `POWER_SHARE_FLOOR` of the average share, then
+/// |z| < Z_CRITICAL everywhere.
+pub fn assert_shares_agree_with_image(
+    what: &str,
+    method: &[Vec<f64>],
+    reference: &Image,
+    grid: usize,
+) -> ShareAgreement {
+    let a = image_share_agreement(method, reference, grid);
+    check_shares(what, a)
+}
+
+/// The assertions of [`assert_shares_agree`] on an agreement already computed.
+fn check_shares(what: &str, a: ShareAgreement) -> ShareAgreement {
+    let report = a.report();
+    println!("{what}: region shares, worst |z| = {:.2}\n{report}", a.worst_z);
+    let weak: Vec<usize> =
+        (0..a.z.len()).filter(|&r| a.reference[r] >= POWER_SHARE_FLOOR && !(a.power_z[r] > Z_CRITICAL)).collect();
+    assert!(
+        weak.is_empty(),
+        "{what}: the share test is too weak: a {:.0}% share error in regions {weak:?} would not reach |z| = \
+         {Z_CRITICAL}\n{report}",
+        100.0 * SHARE_ERROR
+    );
+    assert!(a.worst_z < Z_CRITICAL, "{what}: region shares disagree (|z| = {:.2} ≥ {Z_CRITICAL})\n{report}", a.worst_z);
+    a
 }

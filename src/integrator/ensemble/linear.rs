@@ -1,5 +1,6 @@
-//! The linear guided perturbations (the paper's Sec. 3.3): the linear lens and linear caustic
-//! perturbations, each Veach's perturbation (`path_space::lens`, `path_space::caustic`) with its
+//! The linear guided perturbations (the paper's Sec. 3.3): the linear lens, linear caustic and linear
+//! multi-chain perturbations, each Veach's perturbation (`path_space::lens`, `path_space::caustic`,
+//! `path_space::multichain`) with its
 //! isotropic kernel replaced by a linear kernel about a guide from Υ, and the plain perturbation as
 //! the fallback when |Υ| < 2 (Sec. 3.4).
 //!
@@ -36,6 +37,9 @@ use super::tree::same_signature;
 use crate::integrator::path_space::caustic::{caustic_pivot, Caustic, CausticKernel};
 use crate::integrator::path_space::kernel::RasterKernel;
 use crate::integrator::path_space::lens::{lens_chain_end, offset_raster, raster_to_solid_angle, Lens};
+use crate::integrator::path_space::multichain::{
+    self, further_chains_density, retrace_further_chains, MultiChain, MultiChainKernel,
+};
 use crate::integrator::path_space::retrace::{retrace, retrace_jacobian};
 use crate::integrator::path_space::{PathContext, PathState, PathVertex, Strategy};
 use crate::sampling::Rng;
@@ -161,6 +165,56 @@ impl LinearLens {
         let p = w[at] / total;
         (p > 0.0 && p.is_finite()).then_some(p)
     }
+
+    /// The guided move on the film shared by the linear lens and linear multi-chain perturbations
+    /// (Sec. 3.3): a guide v drawn from Υ = `subset` with weight S(x̄, v, 0, k)/Σ S (k the end of
+    /// the lens chain), then the stretch of the raster position about v's. Returns the guide and
+    /// the new raster position (None when it leaves the film).
+    fn sample_film(
+        &self,
+        ctx: &PathContext,
+        kernel: &GuidedKernel<impl Send + Sync>,
+        path: &PathState,
+        subset: &[u32],
+        k: usize,
+        rng: &mut Rng,
+    ) -> Option<(u32, glam::Vec2)> {
+        let view = &kernel.view;
+        let w = view.weights(path, subset, 0, k, &kernel.counts);
+        let (at, _) = choose_weighted(&w, rng.uniform_f64())?;
+        let guide = subset[at];
+        let v = view.paths[guide as usize].raster.as_dvec2();
+        let stretch = StretchKernel { alpha: view.alpha(subset) };
+        let (r, _) = stretch.sample(path.raster.as_dvec2(), v, rng.uniform_f64());
+        Some((guide, offset_raster(ctx, path.raster, r - path.raster.as_dvec2())?))
+    }
+
+    /// The density per pixel² of `sample_film` moving `from`'s raster position to `to`'s with
+    /// `guide` (module docs, "Densities"): w(v | x̄) · g(λ) / (|x − v| |y − v|); 0 when Υ does not
+    /// hold the guide or its weight is 0.
+    fn film_density(
+        &self,
+        kernel: &GuidedKernel<impl Send + Sync>,
+        from: &PathState,
+        to: &PathState,
+        subset: &[u32],
+        guide: u32,
+        k: usize,
+    ) -> f64 {
+        let view = &kernel.view;
+        let Some(at) = position(subset, guide) else { return 0.0 };
+        let Some(w) = self.selection(view, from, subset, at, k, &kernel.counts) else { return 0.0 };
+        let v = view.paths[guide as usize].raster.as_dvec2();
+        let (s_from, s_to) = ((from.raster.as_dvec2() - v).length(), (to.raster.as_dvec2() - v).length());
+        let stretch = StretchKernel { alpha: view.alpha(subset) };
+        #[allow(unused_mut)]
+        let mut g = stretch.density_lambda(s_to / s_from);
+        #[cfg(any(test, feature = "testing"))]
+        if self.omit_lambda && g > 0.0 {
+            g = 1.0;
+        }
+        w * g / (s_from * s_to)
+    }
 }
 
 impl Strategy for LinearLens {
@@ -187,17 +241,10 @@ impl Strategy for LinearLens {
         rng: &mut Rng,
         counters: &mut Counters,
     ) -> Option<(PathState, GuidedMove)> {
-        let view = &kernel.view;
         kernel.propose_with(Lens::default(), ctx, path, rng, counters, |subset, offset, rng, counters| {
             let x = &path.vertices;
             let k = lens_chain_end(x)?;
-            let w = view.weights(path, subset, 0, k, &kernel.counts);
-            let (at, _) = choose_weighted(&w, rng.uniform_f64())?;
-            let guide = subset[at];
-            let v = view.paths[guide as usize].raster.as_dvec2();
-            let stretch = StretchKernel { alpha: view.alpha(subset) };
-            let (r, _) = stretch.sample(path.raster.as_dvec2(), v, rng.uniform_f64());
-            let raster = offset_raster(ctx, path.raster, r - path.raster.as_dvec2())?;
+            let (guide, raster) = self.sample_film(ctx, kernel, path, subset, k, rng)?;
             let ray = ctx.scene.camera.ray_through(raster);
             let new = retrace(ctx, x, 0, k, &x[0].vertex, ray.d, counters)?;
             let vertices: Vec<PathVertex> =
@@ -214,21 +261,9 @@ impl Strategy for LinearLens {
         to: &PathState,
         mv: &GuidedMove,
     ) -> f64 {
-        let view = &kernel.view;
         kernel.transition_with(Lens::default(), ctx, from, to, mv, |subset, guide| {
             let Some(k) = lens_chain_end(&from.vertices) else { return 0.0 };
-            let Some(at) = position(subset, guide) else { return 0.0 };
-            let Some(w) = self.selection(view, from, subset, at, k, &kernel.counts) else { return 0.0 };
-            let v = view.paths[guide as usize].raster.as_dvec2();
-            let (s_from, s_to) = ((from.raster.as_dvec2() - v).length(), (to.raster.as_dvec2() - v).length());
-            let stretch = StretchKernel { alpha: view.alpha(subset) };
-            #[allow(unused_mut)]
-            let mut g = stretch.density_lambda(s_to / s_from);
-            #[cfg(any(test, feature = "testing"))]
-            if self.omit_lambda && g > 0.0 {
-                g = 1.0;
-            }
-            let t_px = w * g / (s_from * s_to);
+            let t_px = self.film_density(kernel, from, to, subset, guide, k);
             raster_to_solid_angle(ctx, to, t_px) * retrace_jacobian(&to.vertices, 0, k)
         })
     }
@@ -319,6 +354,89 @@ impl Strategy for LinearCaustic {
             let g = stretch.density_lambda(psi_new / psi);
             let t_omega = g / (psi * psi_new.sin());
             t_omega * retrace_jacobian(&to.vertices, j, 1)
+        })
+    }
+
+    fn reverse(&self, mv: &GuidedMove) -> GuidedMove {
+        *mv
+    }
+}
+
+/// The linear multi-chain perturbation (Sec. 3.3): Veach's multi-chain perturbation
+/// (`path_space::multichain`) with its lens offset replaced by the linear lens's guided stretch on
+/// the film (guide drawn ∝ S(x̄, v, 0, k), k the end of the lens chain, "in the same way as the
+/// Linear Lens Perturbation"); each further specular chain is then retraced from its new pivot
+/// after Veach's direction perturbation (`retrace_further_chains`), until the path reconnects to
+/// its light subpath. The paper guides only the image-plane step; its "deterministic connection to
+/// the next specular subpath" is read as the retrace of each further chain, whose pivot direction
+/// must still move for the chain to follow the moved pivot (keeping x_{p+1} fixed would make the
+/// reverse move impossible unless y_{p+1} = x_{p+1}, which a retrace reaches only by chance).
+///
+/// Density: the linear lens's film density (`LinearLens::film_density`, with its selection ratio),
+/// to solid angle at the pinhole and through the lens chain's retrace, times the further chains'
+/// densities (`further_chains_density`), as Veach's multi-chain; the fallback (|Υ| < 2) is Veach's
+/// multi-chain perturbation itself.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LinearMultiChain {
+    /// The guided film move (its test-only wrong variants included).
+    pub lens: LinearLens,
+}
+
+impl Strategy for LinearMultiChain {
+    type Kernel = GuidedKernel<MultiChainKernel>;
+    type Move = GuidedMove;
+
+    fn name(&self) -> &'static str {
+        "linear_multi_chain"
+    }
+
+    fn is_perturbation(&self) -> bool {
+        true
+    }
+
+    fn suitable(&self, _ctx: &PathContext, path: &PathState) -> bool {
+        multichain::chains(&path.vertices).is_some()
+    }
+
+    fn propose(
+        &self,
+        ctx: &PathContext,
+        path: &PathState,
+        kernel: &Self::Kernel,
+        rng: &mut Rng,
+        counters: &mut Counters,
+    ) -> Option<(PathState, GuidedMove)> {
+        kernel.propose_with(MultiChain, ctx, path, rng, counters, |subset, offset, rng, counters| {
+            let x = &path.vertices;
+            let chains = multichain::chains(x)?;
+            let (guide, raster) = self.lens.sample_film(ctx, kernel, path, subset, chains[0].1, rng)?;
+            let ray = ctx.scene.camera.ray_through(raster);
+            let mut y: Vec<PathVertex> = x[..1].to_vec();
+            y.extend(retrace(ctx, x, 0, chains[0].1, &x[0].vertex, ray.d, counters)?);
+            retrace_further_chains(ctx, x, &chains, &kernel.plain.direction, &mut y, rng, counters)?;
+            Some((PathState::from_path_vertices(ctx, y, counters), GuidedMove::Guided { offset, guide }))
+        })
+    }
+
+    fn transition(
+        &self,
+        ctx: &PathContext,
+        kernel: &Self::Kernel,
+        from: &PathState,
+        to: &PathState,
+        mv: &GuidedMove,
+    ) -> f64 {
+        kernel.transition_with(MultiChain, ctx, from, to, mv, |subset, guide| {
+            let (x, y) = (&from.vertices, &to.vertices);
+            let Some(cx) = multichain::chains(x) else { return 0.0 };
+            if multichain::chains(y).as_ref() != Some(&cx) {
+                return 0.0;
+            }
+            let k = cx[0].1;
+            let t_px = self.lens.film_density(kernel, from, to, subset, guide, k);
+            raster_to_solid_angle(ctx, to, t_px)
+                * retrace_jacobian(y, 0, k)
+                * further_chains_density(x, y, &cx, &kernel.plain.direction)
         })
     }
 

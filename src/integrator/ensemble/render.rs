@@ -5,7 +5,8 @@
 //!   chains (`path_space::chain`), each chain with its own stream from (seed, chain index).
 //! - **Iterations** (Algorithm 1): every chain of X takes `it` = max(1, ⌊W·H/(|X| + |Y|)⌋) steps of
 //!   pmlt's Metropolis–Hastings `step` (the paper's ⌊W·H/(|X|+|Y|)⌋ is 0 for images smaller than the
-//!   ensembles) with the strategies bidirectional, linear lens and linear caustic, the guided ones
+//!   ensembles) with the strategies bidirectional, linear lens, linear caustic and linear
+//!   multi-chain, the guided ones
 //!   reading Y (its paths and its tree, rebuilt here at each swap, `tree`); then X and Y swap. X's
 //!   chains run in parallel on the driver as its units, Y fixed: the complementary split that
 //!   keeps the parallel update valid (`toy` module docs). Splats are pmlt's expected values.
@@ -21,7 +22,7 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use super::guide::{GuideCounts, GuideReport, GuideView};
-use super::linear::{GuidedKernel, LinearCaustic, LinearLens};
+use super::linear::{GuidedKernel, LinearCaustic, LinearLens, LinearMultiChain};
 use super::settings::EmltSettings;
 use crate::film::Accumulator;
 use crate::integrator::driver::{Driver, PassSet, Passes, RunControl, RunStart, Slot};
@@ -29,6 +30,7 @@ use crate::integrator::path_space::bidirectional::{Bidirectional, LengthKernel};
 use crate::integrator::path_space::caustic::CausticKernel;
 use crate::integrator::path_space::chain::{new_stats, step, ChainUnit};
 use crate::integrator::path_space::kernel::RasterKernel;
+use crate::integrator::path_space::multichain::MultiChainKernel;
 use crate::integrator::path_space::{Entry, PathContext, Pmlt, PmltSettings, StrategySet};
 use crate::integrator::pss::bootstrap::run_bootstrap;
 use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
@@ -85,7 +87,7 @@ impl Emlt {
     }
 
     /// The strategies of a half-iteration, the guided ones reading `view`.
-    fn strategies(&self, scene: &Scene, view: &Arc<GuideView>, counts: &[Arc<GuideCounts>; 2]) -> StrategySet {
+    fn strategies(&self, scene: &Scene, view: &Arc<GuideView>, counts: &[Arc<GuideCounts>; 3]) -> StrategySet {
         let camera = &scene.camera;
         let raster = RasterKernel::veach(camera.width, camera.height);
         let s = &self.settings;
@@ -105,6 +107,15 @@ impl Emlt {
                         counts: counts[1].clone(),
                     },
                     weight: s.linear_caustic,
+                }),
+                Box::new(Entry {
+                    strategy: LinearMultiChain { lens: self.linear_lens },
+                    kernel: GuidedKernel {
+                        view: view.clone(),
+                        plain: MultiChainKernel::new(raster),
+                        counts: counts[2].clone(),
+                    },
+                    weight: s.linear_multi_chain,
                 }),
             ],
         }
@@ -135,7 +146,7 @@ impl Integrator for Emlt {
         let ctx = PathContext { scene, max_depth };
         let bctx = pmlt.bdpt_context(scene);
         let e = self.settings.ensemble_size;
-        let counts: [Arc<GuideCounts>; 2] = Default::default();
+        let counts: [Arc<GuideCounts>; 3] = Default::default();
         // A set with an empty view: the names and order of the statistics.
         let empty = Arc::new(GuideView::new(Vec::new(), &self.settings, width, height));
         let names = self.strategies(scene, &empty, &counts);
@@ -284,7 +295,11 @@ impl Integrator for Emlt {
                 .strategies
                 .insert(s.name.clone(), AcceptanceCount { proposed: s.selected, accepted: s.accepted as f64 });
         }
-        report.guided = vec![counts[0].report("linear_lens"), counts[1].report("linear_caustic")];
+        report.guided = vec![
+            counts[0].report("linear_lens"),
+            counts[1].report("linear_caustic"),
+            counts[2].report("linear_multi_chain"),
+        ];
         let (g, f) = report.guided.iter().fold((0, 0), |(g, f), r| (g + r.guided, f + r.fallback));
         report.guided_share = if g + f > 0 { g as f64 / (g + f) as f64 } else { 0.0 };
         let mut extra = serde_json::to_value(&stats).unwrap_or(serde_json::Value::Null);

@@ -29,6 +29,7 @@ pub struct EmltSettings {
     /// Selection weights of the linear guided perturbations (2 each, 0 turns one off).
     pub linear_lens: f64,
     pub linear_caustic: f64,
+    pub linear_multi_chain: f64,
     /// α of the linear kernels when Υ is clustered on the film (α_l = 0.5, Sec. 3.4).
     pub alpha_large: f64,
     /// α when Υ is spread over the film (α_s = 0.05).
@@ -49,6 +50,7 @@ impl Default for EmltSettings {
             bidirectional: 1.0,
             linear_lens: 2.0,
             linear_caustic: 2.0,
+            linear_multi_chain: 2.0,
             alpha_large: 0.5,
             alpha_small: 0.05,
             alpha_c: 0.1,
@@ -84,7 +86,11 @@ impl EmltSettings {
                 s.bidirectional
             ));
         }
-        for (name, w) in [("linear_lens", s.linear_lens), ("linear_caustic", s.linear_caustic)] {
+        for (name, w) in [
+            ("linear_lens", s.linear_lens),
+            ("linear_caustic", s.linear_caustic),
+            ("linear_multi_chain", s.linear_multi_chain),
+        ] {
             if !(w >= 0.0 && w.is_finite()) {
                 return bad(format!("{name} = {w}: expected a weight >= 0 (0 turns the perturbation off)"));
             }

@@ -71,6 +71,49 @@ pub fn chains(path: &[PathVertex]) -> Option<Vec<(usize, usize)>> {
     }
 }
 
+/// The multi-chain perturbation after its lens chain: `y` holds the new vertices 0 ..= k of the
+/// lens chain (`chains[0]`); per further chain (p, m), the direction x_p → x_{p+1} turned by
+/// `direction` is retraced from the new y_p to y_m; then the rest of `x` is appended. None when a
+/// retrace fails. Shared with the ensemble's linear multi-chain perturbation, which guides only the
+/// lens chain.
+pub fn retrace_further_chains(
+    ctx: &PathContext,
+    x: &[PathVertex],
+    chains: &[(usize, usize)],
+    direction: &DirectionKernel,
+    y: &mut Vec<PathVertex>,
+    rng: &mut Rng,
+    counters: &mut Counters,
+) -> Option<()> {
+    for &(p, m) in &chains[1..] {
+        let axis = x[p].vertex.dir_to(&x[p + 1].vertex).as_dvec3();
+        let dir = direction.sample(axis, [rng.uniform_f64(), rng.uniform_f64()]).as_vec3();
+        let origin = y[p].vertex;
+        y.extend(retrace(ctx, x, p, m, &origin, dir, counters)?);
+    }
+    let last = chains[chains.len() - 1].1;
+    y.extend(x[last + 1..].iter().copied());
+    Some(())
+}
+
+/// The density of [`retrace_further_chains`] turning `x` into `y` (module docs): per further chain
+/// (p, m), p_θ(ω_y | ω_x) at y_p times the chain's retrace Jacobian.
+pub fn further_chains_density(
+    x: &[PathVertex],
+    y: &[PathVertex],
+    chains: &[(usize, usize)],
+    direction: &DirectionKernel,
+) -> f64 {
+    chains[1..]
+        .iter()
+        .map(|&(p, m)| {
+            let axis = x[p].vertex.dir_to(&x[p + 1].vertex).as_dvec3();
+            let dir = y[p].vertex.dir_to(&y[p + 1].vertex).as_dvec3();
+            direction.density(axis, dir) * retrace_jacobian(y, p, m)
+        })
+        .product()
+}
+
 impl Strategy for MultiChain {
     type Kernel = MultiChainKernel;
     type Move = ();
@@ -102,14 +145,7 @@ impl Strategy for MultiChain {
         let ray = ctx.scene.camera.ray_through(raster);
         let mut y: Vec<PathVertex> = x[..1].to_vec();
         y.extend(retrace(ctx, x, 0, chains[0].1, &x[0].vertex, ray.d, counters)?);
-        for &(p, m) in &chains[1..] {
-            let axis = x[p].vertex.dir_to(&x[p + 1].vertex).as_dvec3();
-            let dir = kernel.direction.sample(axis, [rng.uniform_f64(), rng.uniform_f64()]).as_vec3();
-            let origin = y[p].vertex;
-            y.extend(retrace(ctx, x, p, m, &origin, dir, counters)?);
-        }
-        let last = chains[chains.len() - 1].1;
-        y.extend(x[last + 1..].iter().copied());
+        retrace_further_chains(ctx, x, &chains, &kernel.direction, &mut y, rng, counters)?;
         Some((PathState::from_path_vertices(ctx, y, counters), ()))
     }
 
@@ -128,12 +164,9 @@ impl Strategy for MultiChain {
         }
         let offset = (to.raster - from.raster).as_dvec2();
         let (_, k) = cx[0];
-        let mut t = raster_to_solid_angle(ctx, to, kernel.lens.density(offset)) * retrace_jacobian(y, 0, k);
-        for &(p, m) in &cx[1..] {
-            let axis = x[p].vertex.dir_to(&x[p + 1].vertex).as_dvec3();
-            let dir = y[p].vertex.dir_to(&y[p + 1].vertex).as_dvec3();
-            t *= kernel.direction.density(axis, dir) * retrace_jacobian(y, p, m);
-        }
+        let t = raster_to_solid_angle(ctx, to, kernel.lens.density(offset))
+            * retrace_jacobian(y, 0, k)
+            * further_chains_density(x, y, &cx, &kernel.direction);
         if t.is_finite() {
             t
         } else {
