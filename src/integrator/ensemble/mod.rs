@@ -14,6 +14,10 @@
 //! - `settings`, `guide`: the settings (adaptive α); Y as the guided strategies see it.
 //! - `linear`: the linear lens and linear caustic perturbations (guided, with the plain fallback).
 //! - `render`: Algorithm 1 on the driver.
+//! - `anisotropic`, `directional` (issue 17): the guided anisotropic kernel (Eq. 11–12, with its
+//!   image-plane version) and the guided directional (vMF) kernel; `toy_anisotropic` (tests).
+pub mod anisotropic;
+pub mod directional;
 pub mod guide;
 pub mod kernel;
 pub mod linear;
@@ -22,4 +26,6 @@ pub mod settings;
 pub mod similarity;
 #[cfg(test)]
 mod toy;
+#[cfg(test)]
+mod toy_anisotropic;
 pub mod tree;
