@@ -1,6 +1,6 @@
 use glam::{Vec2, Vec3};
 
-use super::{gamma, spawn_ray, spawn_ray_to, triangle_normal, Frame, Hit, Ray, TriangleMesh};
+use super::{gamma, spawn_ray, triangle_normal, Frame, Hit, Ray, TriangleMesh};
 
 /// Everything shading needs about a ray's hit on a surface.
 #[derive(Clone, Copy, Debug)]
@@ -63,11 +63,5 @@ impl SurfaceInteraction {
     /// A ray leaving this surface in direction `d`.
     pub fn spawn(&self, d: Vec3) -> Ray {
         spawn_ray(self.p, self.p_error, self.ng, d)
-    }
-
-    /// A shadow ray from this surface to a point `q` with error bound `q_error` and normal `nq`
-    /// (pass `Vec3::ZERO` for both when q is not on a surface).
-    pub fn spawn_to(&self, q: Vec3, q_error: Vec3, nq: Vec3) -> Ray {
-        spawn_ray_to(self.p, self.p_error, self.ng, q, q_error, nq)
     }
 }

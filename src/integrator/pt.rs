@@ -209,8 +209,7 @@ impl PathTracer {
                         let wi = frame.to_local(ls.wi);
                         let f = material.eval(wo, wi, TransportMode::Radiance) * wi.z.abs();
                         if f != Rgb::ZERO {
-                            let shadow =
-                                if ls.infinite { si.spawn(ls.wi) } else { si.spawn_to(ls.p, Vec3::ZERO, ls.n) };
+                            let shadow = ls.shadow_ray_from(si.p, si.p_error, si.ng);
                             counters.shadow_rays += 1;
                             if !scene.occluded(&shadow) {
                                 let pdf_light = pmf * ls.pdf;

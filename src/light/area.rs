@@ -32,6 +32,9 @@ pub struct MeshPoint {
     /// Barycentrics (b1, b2) in the convention of `Hit`.
     pub b: Vec2,
     pub p: Vec3,
+    /// Conservative absolute error bound of `p`, per axis: the hit point's bound γ(7)·Σ|b_i v_i|
+    /// (`SurfaceInteraction::from_hit`; pbrt-v4 Sec. 6.8.5), for rays that end at the point.
+    pub p_error: Vec3,
     /// Unit geometric normal of the triangle (its winding), the same as `SurfaceInteraction::ng`.
     pub n: Vec3,
 }
@@ -45,8 +48,10 @@ pub fn triangle_normal(mesh: &TriangleMesh, prim: u32) -> Vec3 {
 pub fn sample_triangle_point(mesh: &TriangleMesh, prim: u32, u: [f32; 2]) -> MeshPoint {
     let [v0, v1, v2] = mesh.triangle(prim);
     let b = sample_uniform_triangle(u);
-    let p = v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y;
-    MeshPoint { prim, b, p, n: triangle_normal(mesh, prim) }
+    let b0 = 1.0 - b.x - b.y;
+    let p = v0 * b0 + v1 * b.x + v2 * b.y;
+    let p_error = gamma(7) * ((v0 * b0).abs() + (v1 * b.x).abs() + (v2 * b.y).abs());
+    MeshPoint { prim, b, p, p_error, n: triangle_normal(mesh, prim) }
 }
 
 /// Barycentrics (b1, b2) of `p` on triangle `prim`, or `None` when `p` is off the triangle: farther
@@ -213,7 +218,7 @@ impl AreaLight {
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
-        Some(LightLiSample { wi, p: q.p, n: q.n, radiance, pdf, infinite: false })
+        Some(LightLiSample { wi, p: q.p, p_error: q.p_error, n: q.n, radiance, pdf, infinite: false })
     }
 
     /// Solid-angle density at `reference` of choosing `p_light` (normal `n_light`): the area density

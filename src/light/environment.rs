@@ -127,6 +127,7 @@ impl ConstantEnvironment {
         Some(LightLiSample {
             wi,
             p: far_point(reference, wi, self.scene_center, self.scene_radius),
+            p_error: Vec3::ZERO,
             n: Vec3::ZERO,
             radiance: self.radiance,
             pdf,
@@ -257,6 +258,7 @@ impl ImageEnvironment {
         Some(LightLiSample {
             wi,
             p: far_point(reference, wi, self.scene_center, self.scene_radius),
+            p_error: Vec3::ZERO,
             n: Vec3::ZERO,
             radiance: self.radiance(wi),
             pdf,
