@@ -107,7 +107,7 @@ for scene in "${scenes[@]}"; do
             after=$(load1)
             tail -n +2 "$dir/$(basename "$file" .toml)-converge.csv" | sed "s/^pmlt,/$integ,/" >> "$csv"
             read -r user sys wall < "$dir/time"
-            echo "$integ,$seed,$budget,$(echo "$user + $sys" | bc),$wall,$before,$after" >> "$cpu"
+            echo "$integ,$seed,$budget,$(awk "BEGIN { printf \"%.2f\", $user + $sys }"),$wall,$before,$after" >> "$cpu"
             echo "$scene seed $seed $integ: $(tail -n 1 "$csv"); CPU $user+$sys s; load $before -> $after" >&2
         done
     done
