@@ -365,7 +365,7 @@ mod tests {
         let pt = PathTracer::from_params(&toml::Table::new()).expect("defaults");
         assert_eq!(
             pt.settings,
-            PtSettings { max_depth: 16, rr_depth: 5, mis: Mis::Power, sampler: SamplerKind::Independent }
+            PtSettings { max_depth: 16, rr_depth: 5, mis: Mis::Power, sampler: SamplerKind::Sobol }
         );
         let t: toml::Table = toml::from_str("max_depth = 3\nmis = \"balance\"").expect("toml");
         let pt = PathTracer::from_params(&t).expect("valid");

@@ -35,16 +35,13 @@ use super::{Rng, UniformSource};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SamplerKind {
-    /// The work item's pseudo-random stream, read in order by every sample of its tile. The
-    /// default for now: with Sobol's lower noise, tests/extremes.rs sees the room translated by
-    /// 1e5 render 0.46% darker than at the origin (|z| 6.25, bound 4.5; independent: 1.77), a
-    /// precision effect of the translation to find before Sobol can be the default
-    /// (docs/benchmarks.md).
-    #[default]
+    /// The work item's pseudo-random stream, read in order by every sample of its tile (the light
+    /// tracer's default, which gains nothing from Sobol points).
     Independent,
-    /// Owen-scrambled Sobol points per pixel (the module docs): MSE at equal samples 0.2–0.6× the
-    /// independent sampler's on the three Cornell scenes with pt and BDPT, within the noise on the
-    /// door (docs/benchmarks.md). The light tracer gains nothing from it.
+    /// Owen-scrambled Sobol points per pixel (the module docs), the default of pt and BDPT: MSE at
+    /// equal samples 0.2–0.6× the independent sampler's on the three Cornell scenes, within the
+    /// noise on the door (docs/benchmarks.md).
+    #[default]
     Sobol,
 }
 
