@@ -5,7 +5,13 @@
 # and prints a Markdown table of wall time, CPU time, peak resident memory and `info`'s estimate.
 #
 #   scripts/large-scene.sh [DIR]        (default DIR: target/large-scene; PLEXUS=path overrides
-#                                        the binary, default target/release/plexus)
+#                                        the binary, default target/release/plexus; REPS=n runs
+#                                        each accelerator n times)
+#
+# IDLE=1 runs each load under SCHED_FIFO (`chrt -f 10`, needs root), which on a machine busy with
+# other work gives the load both cores as an idle machine would (the kernel still keeps 5% of each
+# second for everything else): the wall time is then close to an idle machine's. Without it the
+# wall time on a loaded machine is mostly waiting for a core; the CPU time is comparable either way.
 #
 # Generates DIR/large-grid.ply (190 MB) and DIR/large-scene.toml with scripts/large-scene.py if
 # they are missing. Needs about 8 GB of free memory for the old reader, under 1.5 GB for the new.
@@ -14,15 +20,17 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 DIR="${1:-$ROOT/target/large-scene}"
 PLEXUS="${PLEXUS:-$ROOT/target/release/plexus}"
 REPS="${REPS:-1}"
+RUN=()
+[ "${IDLE:-0}" = 1 ] && RUN=(chrt -f 10)
 [ -f "$DIR/large-grid.ply" ] || python3 "$ROOT/scripts/large-scene.py" "$DIR"
 
-echo "load average: $(cut -d' ' -f1-3 /proc/loadavg); binary: $PLEXUS"
+echo "load average: $(cut -d' ' -f1-3 /proc/loadavg); binary: $PLEXUS; ${RUN[*]:-normal scheduling}"
 echo
 echo "| accelerator | run | wall s | CPU s (user + sys) | peak RSS MiB | info estimate MiB | estimate / peak |"
 echo "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"
 for accel in embree bvh; do
     for rep in $(seq 1 "$REPS"); do
-        /usr/bin/time -v -o "$DIR/time-$accel.txt" \
+        "${RUN[@]}" /usr/bin/time -v -o "$DIR/time-$accel.txt" \
             "$PLEXUS" info "$DIR/large-scene.toml" --accel "$accel" --json >"$DIR/info-$accel.json"
         python3 - "$DIR/time-$accel.txt" "$DIR/info-$accel.json" "$accel" "$rep" <<'PY'
 import json, sys

@@ -68,6 +68,23 @@ impl Scalar {
         !matches!(self, Scalar::F32 | Scalar::F64)
     }
 
+    /// Decodes `b` (exactly `self.size()` bytes) as an f32: as `decode(b) as f32`, without the
+    /// round trip through f64 for the common float32 property.
+    #[inline]
+    fn decode_f32(self, b: &[u8], big_endian: bool) -> f32 {
+        match self {
+            Scalar::F32 => {
+                let a = b.try_into().unwrap_or_default();
+                if big_endian {
+                    f32::from_be_bytes(a)
+                } else {
+                    f32::from_le_bytes(a)
+                }
+            }
+            _ => self.decode(b, big_endian) as f32,
+        }
+    }
+
     /// Decodes `b` (exactly `self.size()` bytes).
     #[inline]
     fn decode(self, b: &[u8], big_endian: bool) -> f64 {
@@ -234,6 +251,11 @@ impl<R: Read> Body<R> {
         Ok(Some(s))
     }
 
+    /// Bytes read but not yet taken (after a `take` that met the end of the file: all that is left).
+    fn available(&self) -> usize {
+        self.end - self.pos
+    }
+
     /// Makes at least `n` bytes available; false at the end of the file.
     #[cold]
     fn refill(&mut self, n: usize) -> Result<bool, String> {
@@ -318,77 +340,179 @@ pub(super) fn read_binary<R: Read>(header: &Header, reader: R) -> Result<RawMesh
 
     let mut body = Body { inner: reader, buf: vec![0; CHUNK], pos: 0, end: 0 };
     let mut out = RawMesh::default();
-    let mut values = Vec::new();
-    let mut fan: Vec<u32> = Vec::new();
     let last = vertex.max(face);
     for (k, e) in header.elements.iter().enumerate().take(last + 1) {
-        let ends = |i: u64| format!("invalid PLY: the file ends inside {} {i} of {}", e.name, e.count);
         if k == vertex {
-            // `count` fits in usize: parse_header bounded it by the file's size.
-            let n = e.count as usize;
-            // One spare slot: `TriangleMesh::new` appends its padding vertex without reallocating.
-            out.positions = Vec::with_capacity(n + 1);
-            let mut normals = layout.normal.map(|_| Vec::with_capacity(n));
-            let mut uvs = layout.uv.map(|_| Vec::with_capacity(n));
-            for i in 0..e.count {
-                read_scalars(&mut body, e, big_endian, &mut values)?.ok_or_else(|| ends(i))?;
-                let v = |j: usize| values[j] as f32;
-                let [x, y, z] = layout.position;
-                out.positions.push(Vec3::new(v(x), v(y), v(z)));
-                if let (Some(ns), Some([a, b, c])) = (normals.as_mut(), layout.normal) {
-                    ns.push(Vec3::new(v(a), v(b), v(c)));
-                }
-                if let (Some(uv), Some([a, b])) = (uvs.as_mut(), layout.uv) {
-                    uv.push(Vec2::new(v(a), v(b)));
-                }
-            }
-            out.normals = normals;
-            out.uvs = uvs;
+            read_vertices(&mut body, e, &layout, big_endian, &mut out)?;
         } else if k == face {
-            out.indices = Vec::with_capacity(e.count as usize);
-            for f in 0..e.count {
-                for (j, p) in e.properties.iter().enumerate() {
-                    match p.kind {
-                        Kind::Scalar(s) => {
-                            body.take(s.size())?.ok_or_else(|| ends(f))?;
-                        }
-                        Kind::List { count, item } => {
-                            let c = count.decode(body.take(count.size())?.ok_or_else(|| ends(f))?, big_endian);
-                            if !(c >= 0.0) {
-                                return Err(format!("face {f}: list '{}' has a negative length {c}", p.name));
-                            }
-                            if j != list {
-                                for _ in 0..c as u64 {
-                                    body.take(item.size())?.ok_or_else(|| ends(f))?;
-                                }
-                                continue;
-                            }
-                            if c < 3.0 {
-                                return Err(format!("face {f}: expected at least 3 vertices, got {c}"));
-                            }
-                            fan.clear();
-                            for _ in 0..c as u64 {
-                                let i = item.decode(body.take(item.size())?.ok_or_else(|| ends(f))?, big_endian);
-                                if i < 0.0 {
-                                    return Err(format!("face {f}: vertex index {i} is negative"));
-                                }
-                                // Integer items decode exactly into f64; u32 holds every one left.
-                                fan.push(i as u32);
-                            }
-                            for t in 1..fan.len() - 1 {
-                                out.indices.push([fan[0], fan[t], fan[t + 1]]);
-                            }
-                        }
-                    }
-                }
-            }
+            read_faces(&mut body, e, list, big_endian, &mut out.indices)?;
         } else {
             for i in 0..e.count {
-                skip_element(&mut body, e, big_endian)?.ok_or_else(|| ends(i))?;
+                skip_element(&mut body, e, big_endian)?.ok_or_else(|| ends_inside(e, i))?;
             }
         }
     }
     Ok(out)
+}
+
+fn ends_inside(e: &Element, i: u64) -> String {
+    format!("invalid PLY: the file ends inside {} {i} of {}", e.name, e.count)
+}
+
+/// Byte offset of each property in the element's record and the record's size, when every
+/// property is a scalar (the record has a fixed size); `None` when it has a list.
+fn fixed_record(e: &Element) -> Option<(Vec<usize>, usize)> {
+    let mut offsets = Vec::with_capacity(e.properties.len());
+    let mut size = 0;
+    for p in &e.properties {
+        let Kind::Scalar(s) = p.kind else { return None };
+        offsets.push(size);
+        size += s.size();
+    }
+    Some((offsets, size))
+}
+
+/// Reads the vertex element into `out`'s positions, normals and uvs.
+fn read_vertices<R: Read>(
+    body: &mut Body<R>,
+    e: &Element,
+    layout: &VertexLayout,
+    big_endian: bool,
+    out: &mut RawMesh,
+) -> Result<(), String> {
+    // `count` fits in usize: parse_header bounded it by the file's size.
+    let n = e.count as usize;
+    // One spare slot: `TriangleMesh::new` appends its padding vertex without reallocating.
+    out.positions = Vec::with_capacity(n + 1);
+    let mut normals = layout.normal.map(|_| Vec::with_capacity(n));
+    let mut uvs = layout.uv.map(|_| Vec::with_capacity(n));
+    if let Some((offsets, stride)) = fixed_record(e).filter(|(_, stride)| *stride > 0) {
+        // Fixed-size records (the usual case): decoded a buffer's worth at a time, each attribute
+        // at its offset, without a per-property read.
+        let field = |j: usize| {
+            let Kind::Scalar(s) = e.properties[j].kind else { unreachable!("fixed_record has only scalars") };
+            (offsets[j], s)
+        };
+        let vec3 = |[a, b, c]: [usize; 3]| [field(a), field(b), field(c)];
+        let position = vec3(layout.position);
+        let normal = layout.normal.map(vec3);
+        let uv = layout.uv.map(|[a, b]| [field(a), field(b)]);
+        let get = |record: &[u8], (at, s): (usize, Scalar)| s.decode_f32(&record[at..at + s.size()], big_endian);
+        let per_batch = (CHUNK / stride).max(1);
+        let mut done = 0;
+        while done < n {
+            let k = (n - done).min(per_batch);
+            let Some(bytes) = body.take(k * stride)? else {
+                return Err(ends_inside(e, (done + body.available() / stride) as u64));
+            };
+            for record in bytes.chunks_exact(stride) {
+                let [x, y, z] = position.map(|f| get(record, f));
+                out.positions.push(Vec3::new(x, y, z));
+                if let (Some(ns), Some(f)) = (normals.as_mut(), normal) {
+                    let [x, y, z] = f.map(|f| get(record, f));
+                    ns.push(Vec3::new(x, y, z));
+                }
+                if let (Some(us), Some(f)) = (uvs.as_mut(), uv) {
+                    let [u, v] = f.map(|f| get(record, f));
+                    us.push(Vec2::new(u, v));
+                }
+            }
+            done += k;
+        }
+    } else {
+        let mut values = Vec::new();
+        for i in 0..e.count {
+            read_scalars(body, e, big_endian, &mut values)?.ok_or_else(|| ends_inside(e, i))?;
+            let v = |j: usize| values[j] as f32;
+            let [x, y, z] = layout.position;
+            out.positions.push(Vec3::new(v(x), v(y), v(z)));
+            if let (Some(ns), Some([a, b, c])) = (normals.as_mut(), layout.normal) {
+                ns.push(Vec3::new(v(a), v(b), v(c)));
+            }
+            if let (Some(uv), Some([a, b])) = (uvs.as_mut(), layout.uv) {
+                uv.push(Vec2::new(v(a), v(b)));
+            }
+        }
+    }
+    out.normals = normals;
+    out.uvs = uvs;
+    Ok(())
+}
+
+/// Reads the face element, the `list`-th property being the vertex indices, into triangles
+/// (polygons split into fans).
+fn read_faces<R: Read>(
+    body: &mut Body<R>,
+    e: &Element,
+    list: usize,
+    big_endian: bool,
+    indices: &mut Vec<[u32; 3]>,
+) -> Result<(), String> {
+    *indices = Vec::with_capacity(e.count as usize);
+    let mut fan: Vec<u32> = Vec::new();
+    for f in 0..e.count {
+        let ends = || ends_inside(e, f);
+        for (j, p) in e.properties.iter().enumerate() {
+            match p.kind {
+                Kind::Scalar(s) => {
+                    body.take(s.size())?.ok_or_else(ends)?;
+                }
+                Kind::List { count, item } => {
+                    let c = count.decode(body.take(count.size())?.ok_or_else(ends)?, big_endian);
+                    if !(c >= 0.0) {
+                        return Err(format!("face {f}: list '{}' has a negative length {c}", p.name));
+                    }
+                    if j == list && c < 3.0 {
+                        return Err(format!("face {f}: expected at least 3 vertices, got {c}"));
+                    }
+                    let size = item.size();
+                    if c * size as f64 > CHUNK as f64 {
+                        // A list longer than the buffer (real faces have a handful of vertices):
+                        // read item by item, so that a lying count meets the end of the file
+                        // rather than an allocation.
+                        if j == list {
+                            fan.clear();
+                        }
+                        for _ in 0..c as u64 {
+                            let b = body.take(size)?.ok_or_else(ends)?;
+                            if j == list {
+                                fan.push(vertex_index(f, item.decode(b, big_endian))?);
+                            }
+                        }
+                    } else {
+                        let items = body.take(c as usize * size)?.ok_or_else(ends)?;
+                        if j != list {
+                            continue;
+                        }
+                        if c == 3.0 {
+                            let v =
+                                |k: usize| vertex_index(f, item.decode(&items[k * size..(k + 1) * size], big_endian));
+                            indices.push([v(0)?, v(1)?, v(2)?]);
+                            continue;
+                        }
+                        fan.clear();
+                        for b in items.chunks_exact(size) {
+                            fan.push(vertex_index(f, item.decode(b, big_endian))?);
+                        }
+                    }
+                    for t in 1..fan.len() - 1 {
+                        indices.push([fan[0], fan[t], fan[t + 1]]);
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A decoded integer list item as a vertex index.
+#[inline]
+fn vertex_index(face: u64, i: f64) -> Result<u32, String> {
+    if i < 0.0 {
+        return Err(format!("face {face}: vertex index {i} is negative"));
+    }
+    // Integer items decode exactly into f64; u32 holds every one left.
+    Ok(i as u32)
 }
 
 /// Reads one element's scalar properties into `values` (lists are read past and leave 0).

@@ -3,8 +3,11 @@
 //! its primitives as one child, and the child with the largest surface area is split by the binned
 //! SAH until the node has four children or none can be split; each child is then a leaf or the
 //! root of a subtree. Split candidates are the boundaries of `BINS` equal-width bins over the
-//! centroid bounds on each axis; the bins also carry their primitives' bounds and centroid bounds,
-//! so the two halves of a split know their extents without another pass over the primitives.
+//! centroid bounds on each axis; the bins also carry their primitives' bounds, and the partition
+//! the centroid bounds of both halves, so the two halves of a split know their extents without
+//! another pass over the primitives. Ranges of at most `SWEEP_PRIMS` are split by the exact SAH
+//! over their sorted centroids instead (most splits are of small ranges, where setting up 3 × 16
+//! bins cost more than the binning).
 //!
 //! Subtrees over more than `PARALLEL_PRIMS` primitives are built in parallel with rayon, each into
 //! its own node array that the parent appends to its own (renumbering child indices); smaller
@@ -112,7 +115,8 @@ const SAH_DEPTH: usize = 64;
 /// Bound on the tree depth (root at depth 0), hence on the traversal stack.
 pub(super) const MAX_DEPTH: usize = SAH_DEPTH + 33;
 
-/// A bin: bounds and centroid bounds of its primitives, and their number.
+/// A bin: bounds and centroid bounds of its primitives, and their number (the bins of `bin_seq`
+/// leave the centroid bounds empty).
 #[derive(Clone, Copy)]
 struct Bin {
     bounds: Aabb,
@@ -173,24 +177,19 @@ impl Binner {
 
 type Bins = [[Bin; BINS]; 3];
 
-/// A bin while binning: the same as [`Bin`] in SIMD vectors (one `minps`/`maxps` per update).
+/// A bin while binning: its primitives' bounds in SIMD vectors (one `minps`/`maxps` each per
+/// update) and their number. Centroid bounds are not binned: the partition computes the two
+/// halves' (`partition`), one update per primitive instead of one per axis.
 #[derive(Clone, Copy)]
 struct BinA {
     min: Vec3A,
     max: Vec3A,
-    cmin: Vec3A,
-    cmax: Vec3A,
     count: u32,
 }
 
 fn bin_seq(prims: &[BuildPrim], binner: &Binner) -> Bins {
-    let empty = BinA {
-        min: Vec3A::INFINITY,
-        max: Vec3A::NEG_INFINITY,
-        cmin: Vec3A::INFINITY,
-        cmax: Vec3A::NEG_INFINITY,
-        count: 0,
-    };
+    let empty = BinA { min: Vec3A::INFINITY, max: Vec3A::NEG_INFINITY, count: 0 };
+    let nb = binner.bins;
     let mut bins = [[empty; BINS]; 3];
     let origin = Vec3A::from(binner.origin);
     let scale = Vec3A::from(binner.scale);
@@ -200,21 +199,19 @@ fn bin_seq(prims: &[BuildPrim], binner: &Binner) -> Bins {
         // The bin on each axis, as `Binner::bin` computes it (`as` saturates NaN and negatives).
         let k = (c - origin) * scale;
         for (axis, axis_bins) in bins.iter_mut().enumerate() {
-            let b = &mut axis_bins[(k[axis] as usize).min(binner.bins - 1)];
+            let b = &mut axis_bins[(k[axis] as usize).min(nb - 1)];
             b.count += 1;
             b.min = b.min.min(lo);
             b.max = b.max.max(hi);
-            b.cmin = b.cmin.min(c);
-            b.cmax = b.cmax.max(c);
         }
     }
-    bins.map(|axis| {
-        axis.map(|b| Bin {
-            bounds: Aabb { min: b.min.into(), max: b.max.into() },
-            centroids: Aabb { min: b.cmin.into(), max: b.cmax.into() },
-            count: b.count,
-        })
-    })
+    let mut out = [[Bin::EMPTY; BINS]; 3];
+    for (o, b) in out.iter_mut().zip(&bins) {
+        for (o, b) in o[..nb].iter_mut().zip(&b[..nb]) {
+            *o = Bin { bounds: Aabb { min: b.min.into(), max: b.max.into() }, centroids: Aabb::EMPTY, count: b.count };
+        }
+    }
+    out
 }
 
 fn merge_bins(mut a: Bins, b: Bins) -> Bins {
@@ -278,19 +275,60 @@ fn best_split(bins: &Bins, nb: usize, parent_area: f32, centroid_extent: Vec3, p
     best
 }
 
-/// Reorders `prims` so that those for which `left` holds come first; returns how many they are.
-fn partition(prims: &mut [BuildPrim], left: impl Fn(&BuildPrim) -> bool) -> usize {
+/// Reorders `prims` so that those for which `left` (given the primitive's centroid) holds come
+/// first; returns how many they are and the centroid bounds of both sides.
+fn partition(prims: &mut [BuildPrim], left: impl Fn(Vec3) -> bool) -> (usize, Aabb, Aabb) {
+    let (mut lc, mut rc) = (Aabb::EMPTY, Aabb::EMPTY);
     let mut i = 0;
     let mut j = prims.len();
     while i < j {
-        if left(&prims[i]) {
+        let c = prims[i].centroid();
+        if left(c) {
+            lc.grow(c);
             i += 1;
         } else {
+            rc.grow(c);
             j -= 1;
             prims.swap(i, j);
         }
     }
-    i
+    (i, lc, rc)
+}
+
+/// Below this many primitives a range is split by the exact SAH over its sorted centroids instead
+/// of by bins: as cheap as binning there, and the best split rather than a bin boundary's.
+const SWEEP_PRIMS: usize = 12;
+
+/// The exact-SAH split of a small range: on each axis, the primitives sorted by centroid and
+/// every one of the `n - 1` cuts evaluated (`C_trav + (A_L N_L + A_R N_R) / A`, as
+/// `best_split`). Leaves `prims` sorted on the best axis and returns the cut and its cost.
+fn sweep_split(prims: &mut [BuildPrim], parent_area: f32, params: &BuildParams) -> Option<(usize, f32)> {
+    let n = prims.len();
+    debug_assert!((2..=SWEEP_PRIMS).contains(&n));
+    let mut best: Option<(usize, usize, f32)> = None;
+    let mut right_area = [0.0f32; SWEEP_PRIMS];
+    for axis in 0..3 {
+        prims.sort_by(|a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]));
+        let mut acc = Aabb::EMPTY;
+        for i in (1..n).rev() {
+            acc = acc.union(&Aabb { min: prims[i].min, max: prims[i].max });
+            right_area[i] = acc.surface_area();
+        }
+        let mut acc = Aabb::EMPTY;
+        for i in 1..n {
+            acc = acc.union(&Aabb { min: prims[i - 1].min, max: prims[i - 1].max });
+            let cost =
+                params.traversal_cost + (acc.surface_area() * i as f32 + right_area[i] * (n - i) as f32) / parent_area;
+            if best.is_none_or(|b| cost < b.2) {
+                best = Some((axis, i, cost));
+            }
+        }
+    }
+    let (axis, cut, cost) = best?;
+    if axis != 2 {
+        prims.sort_by(|a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]));
+    }
+    Some((cut, cost))
 }
 
 /// A contiguous range of a node's primitives, with its extents.
@@ -317,6 +355,14 @@ fn split(prims: &mut [BuildPrim], r: &Range, params: &BuildParams) -> Option<(Ra
     let c_extent = r.ext.centroids.extent();
     let half = |start: usize, len: usize, ext: Bin| Range { start, len, ext, depth: r.depth + 1, leaf: false };
     if r.depth < SAH_DEPTH && c_extent.max_element() > 0.0 {
+        if n <= SWEEP_PRIMS {
+            let (mid, cost) = sweep_split(slice, r.ext.bounds.surface_area(), params)?;
+            if n <= params.max_leaf && cost >= n as f32 {
+                return None;
+            }
+            let (l, rt) = (extent_seq(&slice[..mid]), extent_seq(&slice[mid..]));
+            return Some((half(r.start, mid, l), half(r.start + mid, n - mid, rt)));
+        }
         let nb = n.clamp(4, BINS);
         let scale = Vec3::select(c_extent.cmpgt(Vec3::ZERO), Vec3::splat(nb as f32) / c_extent, Vec3::ZERO);
         let binner = Binner { origin: r.ext.centroids.min, scale, bins: nb };
@@ -325,11 +371,12 @@ fn split(prims: &mut [BuildPrim], r: &Range, params: &BuildParams) -> Option<(Ra
             if n <= params.max_leaf && s.cost >= n as f32 {
                 return None;
             }
-            let mid = partition(slice, |p| binner.bin(p.centroid(), s.axis) < s.bin);
+            let (mid, lc, rc) = partition(slice, |c| binner.bin(c, s.axis) < s.bin);
             if mid > 0 && mid < n {
                 let fold = |bins: &[Bin]| bins.iter().fold(Bin::EMPTY, |a, b| a.merge(b));
-                let (l, rt) = (fold(&bins[s.axis][..s.bin]), fold(&bins[s.axis][s.bin..]));
+                let (mut l, mut rt) = (fold(&bins[s.axis][..s.bin]), fold(&bins[s.axis][s.bin..]));
                 debug_assert_eq!((l.count as usize, rt.count as usize), (mid, n - mid));
+                (l.centroids, rt.centroids) = (lc, rc);
                 return Some((half(r.start, mid, l), half(r.start + mid, n - mid, rt)));
             }
         }
