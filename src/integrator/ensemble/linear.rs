@@ -1,13 +1,13 @@
 //! The linear guided perturbations (the paper's Sec. 3.3): the linear lens, linear caustic and linear
 //! multi-chain perturbations, each Veach's perturbation (`path_space::lens`, `path_space::caustic`,
-//! `path_space::multichain`) with its
-//! isotropic kernel replaced by a linear kernel about a guide from Υ, and the plain perturbation as
-//! the fallback when |Υ| < 2 (Sec. 3.4).
+//! `path_space::multichain`) with its isotropic kernel replaced by a linear kernel about a guide
+//! from Υ, and the plain perturbation as the fallback when |Υ| < 2 (Sec. 3.4).
 //!
 //! # Guide choice is part of the kernel
 //! - Linear lens: the guide v is drawn from Υ with weight w(v | x̄) = S(x̄, v, 0, k)/Σ S (Eq. 9, k the
 //!   first non-specular vertex); the reverse move redoes the choice from ȳ, so T includes w(v | x̄)
-//!   and the reverse T includes w(v | ȳ): their ratio is in the acceptance.
+//!   and the reverse T includes w(v | ȳ): their ratio is in the acceptance. The linear multi-chain
+//!   perturbation chooses its guide the same way (`LinearMultiChain`).
 //! - Linear caustic: the guide is Υ's best match to the pivot and the first specular vertex
 //!   (S(x̄, v, j − 1, j)); T is 0 unless v is the best match of the path the move leaves, so a
 //!   move to a ȳ whose best match is another path is rejected (its reverse could not choose v).

@@ -22,7 +22,14 @@ pub const EPSILON: f64 = 1e-4;
 
 /// S(x, v) of Eq. 8 for two points.
 pub fn point_similarity(x: DVec3, v: DVec3) -> f64 {
-    let d = 1.0 / (x - v).length_squared().max(EPSILON);
+    let r2 = (x - v).length_squared();
+    if r2 <= EPSILON {
+        // d = 1/ε and tanh(1/(2ε)) = tanh(5000), which is 1 in f64 (tanh(t) rounds to 1 above
+        // t ≈ 19.1): the same value without the tanh (coincident vertices, e.g. a pinhole camera's,
+        // are the common case of Eq. 9's first factor).
+        return 1.0;
+    }
+    let d = 1.0 / r2;
     // 2/(1 + e^{−d}) − 1 written as tanh(d/2): the same function, without the cancellation of the
     // subtraction for small d.
     (0.5 * d).tanh()
@@ -60,6 +67,9 @@ mod tests {
     fn eq8_landmarks() {
         let o = DVec3::ZERO;
         assert_eq!(point_similarity(o, o), 1.0);
+        assert_eq!((0.5 / EPSILON).tanh(), 1.0, "the coincident shortcut must be exact");
+        let near = DVec3::X * EPSILON.sqrt() * (1.0 + 1e-9);
+        assert_eq!(point_similarity(o, near), 1.0);
         assert!((point_similarity(o, DVec3::X) - 0.5f64.tanh()).abs() < 1e-15);
         let far = point_similarity(o, DVec3::X * 100.0);
         assert!((far - 0.5e-4).abs() < 1e-10, "{far}");

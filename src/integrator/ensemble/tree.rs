@@ -38,16 +38,18 @@ use crate::integrator::path_space::{Interaction, PathState};
 
 /// A path's signature: one byte per vertex, its interaction type (module docs).
 pub fn signature(path: &PathState) -> Vec<u8> {
-    path.vertices
-        .iter()
-        .map(|v| match v.interaction {
-            Interaction::Camera => 0,
-            Interaction::Diffuse => 1,
-            Interaction::Glossy => 2,
-            Interaction::Specular => 3,
-            Interaction::Emitter => 4,
-        })
-        .collect()
+    path.vertices.iter().map(|v| interaction_code(v.interaction)).collect()
+}
+
+/// A vertex's byte of the signature.
+fn interaction_code(interaction: Interaction) -> u8 {
+    match interaction {
+        Interaction::Camera => 0,
+        Interaction::Diffuse => 1,
+        Interaction::Glossy => 2,
+        Interaction::Specular => 3,
+        Interaction::Emitter => 4,
+    }
 }
 
 /// Whether two paths have the same signature (length and every vertex's type).
@@ -78,7 +80,17 @@ impl EnsembleTree {
 
     /// The indices of the paths with `path`'s signature (empty when none).
     pub fn bucket(&self, path: &PathState) -> &[u32] {
-        match self.buckets.get(&signature(path)) {
+        // The signature on the stack for the usual lengths: a lookup per proposal allocates nothing.
+        let mut key = [0u8; 32];
+        let found = if path.len() <= key.len() {
+            for (k, v) in key.iter_mut().zip(&path.vertices) {
+                *k = interaction_code(v.interaction);
+            }
+            self.buckets.get(&key[..path.len()])
+        } else {
+            self.buckets.get(&signature(path))
+        };
+        match found {
             Some(&(start, len)) => &self.order[start as usize..(start + len) as usize],
             None => &[],
         }
