@@ -78,6 +78,7 @@ fn new_strategies_run_and_the_ablation_switch_turns_them_off() {
 /// per pixel against pt at 2048 spp). Measured (2026-12-03): worst |z| = 1.89, the power check
 /// passing (at 1024 both ways it failed in two regions: a 10% error reached only |z| = 4.3).
 /// With the environment test below, about 100 CPU s.
+#[test]
 fn anisotropic_only_agrees_with_pt_on_cornell_box() {
     let cornell = scene("cornell-box", 16);
     let params = "max_depth = 8\nbootstrap = 20000\nensemble_size = 128\nperturbations = \"anisotropic\"";
@@ -90,10 +91,28 @@ fn anisotropic_only_agrees_with_pt_on_cornell_box() {
 /// scene (the environment perturbation's scene; 3072 mutations per pixel and pt at 3072 spp).
 /// Measured: worst |z| = 1.85, the weakest region's 10% error at |z| = 5.3 (at 1024 the power
 /// check failed in 11 regions).
+#[test]
 fn all_strategies_agree_with_pt_on_the_environment_scene() {
     let env = scene("environment", 16);
     let params = "max_depth = 8\nbootstrap = 20000\nensemble_size = 128";
     let reference = render_regions(&env, "pt", "max_depth = 8", 3072, 3, RENDERS);
     let renders = render_regions(&env, "emlt", params, 3072, 3, RENDERS);
     assert_shares_agree("emlt (all) vs pt on environment", &renders, &reference);
+}
+
+/// emlt with all strategies on the glossy and the glass Cornell boxes (2048 mutations per pixel
+/// against pt at 2048 spp), by region shares. Not run by default: beyond this share of the
+/// suite. Measured (2026-12-03): the glossy box agrees (worst |z| = 2.60) but the power check
+/// fails in 3 regions (a 10% error reaches |z| = 2.4 … 4.6), so about 4× more mutations are
+/// needed; the glass box was not reached.
+#[test]
+#[ignore = "beyond the suite's budget, and short of power at 2048 (see doc comment)"]
+fn all_strategies_agree_with_pt_on_cornell_glossy_and_glass() {
+    let params = "max_depth = 8\nbootstrap = 20000\nensemble_size = 128";
+    for name in ["cornell-glossy", "cornell-glass"] {
+        let s = scene(name, 16);
+        let reference = render_regions(&s, "pt", "max_depth = 8", 2048, 3, RENDERS);
+        let renders = render_regions(&s, "emlt", params, 2048, 3, RENDERS);
+        assert_shares_agree(&format!("emlt (all) vs pt on {name}"), &renders, &reference);
+    }
 }
