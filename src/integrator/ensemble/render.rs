@@ -5,8 +5,9 @@
 //!   chains (`path_space::chain`), each chain with its own stream from (seed, chain index).
 //! - **Iterations** (Algorithm 1): every chain of X takes `it` = max(1, ⌊W·H/(|X| + |Y|)⌋) steps of
 //!   pmlt's Metropolis–Hastings `step` (the paper's ⌊W·H/(|X|+|Y|)⌋ is 0 for images smaller than the
-//!   ensembles) with the strategies bidirectional, linear lens, linear caustic and linear
-//!   multi-chain, the guided ones
+//!   ensembles) with the strategies bidirectional, linear lens, linear caustic, linear
+//!   multi-chain, anisotropic path and environment (issue 17; `EmltSettings::perturbations`
+//!   switches them), the guided ones
 //!   reading Y (its paths and its tree, rebuilt here at each swap, `tree`); then X and Y swap. X's
 //!   chains run in parallel on the driver as its units, Y fixed: the complementary split that
 //!   keeps the parallel update valid (`toy` module docs). Splats are pmlt's expected values.
@@ -21,6 +22,8 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
+use super::anisotropic_path::{AnisotropicPath, GuideContext};
+use super::environment::Environment;
 use super::guide::{GuideCounts, GuideReport, GuideView};
 use super::linear::{GuidedKernel, LinearCaustic, LinearLens, LinearMultiChain};
 use super::settings::EmltSettings;
@@ -37,6 +40,11 @@ use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, Re
 use crate::sampling::Distribution1D;
 use crate::scene::Scene;
 use crate::stats::AcceptanceCount;
+
+/// The guided strategies with counts: linear lens, linear caustic, linear multi-chain, anisotropic
+/// path (whose counts are per fit: Gaussian fits as guided, degenerate ones as fallbacks) and
+/// environment.
+const GUIDED_STRATEGIES: usize = 5;
 
 /// Ensemble MLT (module docs).
 #[derive(Clone, Debug, Default)]
@@ -87,17 +95,24 @@ impl Emlt {
     }
 
     /// The strategies of a half-iteration, the guided ones reading `view`.
-    fn strategies(&self, scene: &Scene, view: &Arc<GuideView>, counts: &[Arc<GuideCounts>; 3]) -> StrategySet {
+    fn strategies(
+        &self,
+        scene: &Scene,
+        view: &Arc<GuideView>,
+        counts: &[Arc<GuideCounts>; GUIDED_STRATEGIES],
+    ) -> StrategySet {
         let camera = &scene.camera;
         let raster = RasterKernel::veach(camera.width, camera.height);
         let s = &self.settings;
+        // The ablation switch (`EmltSettings::perturbations`) zeroes the weights it turns off.
+        let weights = s.guided_weights();
         StrategySet {
             entries: vec![
                 Box::new(Entry { strategy: Bidirectional::default(), kernel: LengthKernel, weight: s.bidirectional }),
                 Box::new(Entry {
                     strategy: self.linear_lens,
                     kernel: GuidedKernel { view: view.clone(), plain: raster, counts: counts[0].clone() },
-                    weight: s.linear_lens,
+                    weight: weights[0],
                 }),
                 Box::new(Entry {
                     strategy: LinearCaustic,
@@ -106,7 +121,7 @@ impl Emlt {
                         plain: CausticKernel::from_lens(&raster, camera),
                         counts: counts[1].clone(),
                     },
-                    weight: s.linear_caustic,
+                    weight: weights[1],
                 }),
                 Box::new(Entry {
                     strategy: LinearMultiChain { lens: self.linear_lens },
@@ -115,7 +130,17 @@ impl Emlt {
                         plain: MultiChainKernel::new(raster),
                         counts: counts[2].clone(),
                     },
-                    weight: s.linear_multi_chain,
+                    weight: weights[2],
+                }),
+                Box::new(Entry {
+                    strategy: AnisotropicPath,
+                    kernel: GuideContext { view: view.clone(), counts: counts[3].clone() },
+                    weight: weights[3],
+                }),
+                Box::new(Entry {
+                    strategy: Environment { kernel: s.environment_kernel },
+                    kernel: GuideContext { view: view.clone(), counts: counts[4].clone() },
+                    weight: weights[4],
                 }),
             ],
         }
@@ -146,7 +171,7 @@ impl Integrator for Emlt {
         let ctx = PathContext { scene, max_depth };
         let bctx = pmlt.bdpt_context(scene);
         let e = self.settings.ensemble_size;
-        let counts: [Arc<GuideCounts>; 3] = Default::default();
+        let counts: [Arc<GuideCounts>; GUIDED_STRATEGIES] = Default::default();
         // A set with an empty view: the names and order of the statistics.
         let empty = Arc::new(GuideView::new(Vec::new(), &self.settings, width, height));
         let names = self.strategies(scene, &empty, &counts);
@@ -299,6 +324,8 @@ impl Integrator for Emlt {
             counts[0].report("linear_lens"),
             counts[1].report("linear_caustic"),
             counts[2].report("linear_multi_chain"),
+            counts[3].report("anisotropic_path"),
+            counts[4].report("environment"),
         ];
         let (g, f) = report.guided.iter().fold((0, 0), |(g, f), r| (g + r.guided, f + r.fallback));
         report.guided_share = if g + f > 0 { g as f64 / (g + f) as f64 } else { 0.0 };

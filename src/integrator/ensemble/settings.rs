@@ -3,6 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::directional::KAPPA_MAX;
+pub use super::environment::EnvironmentKernel;
 use crate::integrator::bdpt::MisHeuristic;
 use crate::integrator::pss::settings::{MAX_BOOTSTRAP, MAX_CHAINS, MAX_DEPTH};
 use crate::integrator::{settings_from_table, RenderError};
@@ -37,6 +39,34 @@ pub struct EmltSettings {
     /// c and σ² of the sigmoid weight w_α = 1/(1 + exp(−(b_res − c)/σ²)) (0.1 and 0.02).
     pub alpha_c: f64,
     pub alpha_sigma2: f64,
+    /// Selection weight of the anisotropic path perturbation (issue 17; 2, 0 turns it off).
+    pub anisotropic_path: f64,
+    /// Selection weight of the environment perturbation (2; suitable only for paths that end at
+    /// the environment).
+    pub environment: f64,
+    /// The environment perturbation's kernel: "directional" (vMF, default) or "hemispherical"
+    /// (the great arc about a guide).
+    pub environment_kernel: EnvironmentKernel,
+    /// κ of the von Mises–Fisher fallback of degenerate fits (1e4: about 0.01 rad; the paper says
+    /// only "a high concentration").
+    pub fallback_concentration: f64,
+    /// Which guided perturbations run, for the paper's ablation (Table 1): "linear" (the default:
+    /// linear lens, caustic and multi-chain, part 1 of the method, whose agreement with the path
+    /// tracer tests/emlt.rs shows on the Cornell, glossy and glass boxes), "all" (the linear ones,
+    /// the anisotropic path and the environment perturbation: agreement shown so far on the
+    /// Cornell box and the environment scene only, tests/emlt_part2.rs) or "anisotropic" (the
+    /// anisotropic path perturbation only); the bidirectional mutation always.
+    pub perturbations: Perturbations,
+}
+
+/// The ablation switch of `EmltSettings::perturbations`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Perturbations {
+    All,
+    #[default]
+    Linear,
+    Anisotropic,
 }
 
 impl Default for EmltSettings {
@@ -55,6 +85,11 @@ impl Default for EmltSettings {
             alpha_small: 0.05,
             alpha_c: 0.1,
             alpha_sigma2: 0.02,
+            anisotropic_path: 2.0,
+            environment: 2.0,
+            environment_kernel: EnvironmentKernel::Directional,
+            fallback_concentration: 1e4,
+            perturbations: Perturbations::Linear,
         }
     }
 }
@@ -90,6 +125,8 @@ impl EmltSettings {
             ("linear_lens", s.linear_lens),
             ("linear_caustic", s.linear_caustic),
             ("linear_multi_chain", s.linear_multi_chain),
+            ("anisotropic_path", s.anisotropic_path),
+            ("environment", s.environment),
         ] {
             if !(w >= 0.0 && w.is_finite()) {
                 return bad(format!("{name} = {w}: expected a weight >= 0 (0 turns the perturbation off)"));
@@ -106,7 +143,30 @@ impl EmltSettings {
         if !(s.alpha_sigma2 > 0.0 && s.alpha_sigma2.is_finite()) {
             return bad(format!("alpha_sigma2 = {}: expected a positive number", s.alpha_sigma2));
         }
+        if !(s.fallback_concentration > 0.0 && s.fallback_concentration <= KAPPA_MAX) {
+            return bad(format!(
+                "fallback_concentration = {}: expected 0 < κ <= {KAPPA_MAX:e}",
+                s.fallback_concentration
+            ));
+        }
         Ok(s)
+    }
+
+    /// The selection weights of (linear lens, linear caustic, linear multi-chain, anisotropic path,
+    /// environment) after the ablation switch `perturbations`.
+    pub fn guided_weights(&self) -> [f64; 5] {
+        let (linear, anisotropic, all) = match self.perturbations {
+            Perturbations::All => (1.0, 1.0, 1.0),
+            Perturbations::Linear => (1.0, 0.0, 0.0),
+            Perturbations::Anisotropic => (0.0, 1.0, 0.0),
+        };
+        [
+            self.linear_lens * linear,
+            self.linear_caustic * linear,
+            self.linear_multi_chain * linear,
+            self.anisotropic_path * anisotropic,
+            self.environment * all,
+        ]
     }
 
     /// α of the linear kernels for a subset Υ spread over `b_res` of the film (Sec. 3.4): the
@@ -133,6 +193,10 @@ mod tests {
             ("linear_lens = -1.0", "linear_lens"),
             ("alpha_small = 0.0", "alpha_small"),
             ("alpha_c = 2.0", "alpha_c"),
+            ("anisotropic_path = -2.0", "anisotropic_path"),
+            ("fallback_concentration = 0.0", "fallback_concentration"),
+            ("perturbations = \"some\"", "perturbations"),
+            ("environment_kernel = \"cone\"", "environment_kernel"),
             ("chains = 5", "chains"),
         ] {
             let t: toml::Table = toml::from_str(bad).expect("toml");
