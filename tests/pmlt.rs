@@ -1,35 +1,61 @@
-//! Path-space MLT (`integrator = "pmlt"`, the bidirectional mutation and the perturbations) against the path tracer, and
-//! its determinism and black-scene behaviour. The transition density and the path-length shares are
+//! Path-space MLT (`integrator = "pmlt"`, the bidirectional mutation and the perturbations)
+//! against the path tracer, and its determinism and black-scene behaviour. The transition density and the path-length shares are
 //! tested inside the library (`integrator::path_space::tests`), where the wrong variants can be
 //! switched on.
 //!
 //! # Agreement
 //! As for the primary-sample-space methods (tests/mlt.rs explains it; tests/common/agreement.rs
 //! states the bounds): with expected-value splatting the image mean is b, so the **region shares**
-//! (4×4 regions, region mean ÷ the render's image mean) of 16 renders test the chain against 16
-//! path-traced renders, by Welch's z with |z| < 5 and a power check (a 10% error of any region's
-//! share holding at least a quarter of the average share must reach |z| = 5); the **brightness**
-//! (image mean, with a 5% power check) tests b, which pmlt takes from its BDPT bootstrap alone.
-//! 64 chains, 768 mutations per pixel of 32×32 (all strategies: bidirectional + lens here), so that
-//! the chains' stationary distribution, not the resampled bootstrap they start from, makes the
-//! image; the path tracer at 1024 spp. Measured (2026-12-02, this file 1025 s with 3 test threads on
-//! the shared machine at load ~13, over issues 13+14's budget): cornell-box shares worst |z| = 1.41,
-//! brightness z = −3.21 (relative standard error 0.0095); cornell-glossy worst |z| = 2.46;
-//! acceptance bidirectional 19.1% / lens 64.8% (box), 18.5% / 63.3% (glossy). **Wrong chain**: with
-//! the addition-length probability left out of the bidirectional T the box's shares fail at
-//! |z| = 111.3 (asserted). The glass scene's test is ignored (its power check fails, see there).
+//! (4×4 regions, region mean ÷ the render's image mean) of 16 renders test the chain, by Welch's z
+//! with |z| < 5 and a power check (a 10% error of any region's share holding at least a quarter of
+//! the average share must reach |z| = 5); the **brightness** (image mean, with a 5% power check)
+//! tests b, which pmlt takes from its BDPT bootstrap alone (on the box, against 16 path-traced
+//! renders). The shares are compared with the committed path-traced references
+//! (`references/<scene>.exr`, 4096 spp at 128×128, max_depth 8 as here), whose own noise is
+//! estimated from their pixels: the test's standard error is then essentially pmlt's (the
+//! reference's noise is 0.1–0.4 of it outside the lamp's regions, whose estimate the lamp's edges
+//! inflate), where 16 path-traced or BDPT renders had been most of it in the glass sphere's regions.
+//!
+//! Strategies per scene (each perturbation with the bidirectional mutation where it is suitable):
+//! the box and the glossy box have no specular surface, so the caustic and multi-chain
+//! perturbations are never suitable there (asserted: selected 0 times with their weights on) and
+//! "all" is bidirectional + lens; on the glass box "all", bidirectional + caustic and
+//! bidirectional + multi-chain run by default (bidirectional + lens alone is all but the "all" run
+//! again, ignored). Each run asserts that its perturbations were exercised (≥ 1000 accepted
+//! proposals in its first render). 32×32, renders of 768–2048 mutations per pixel, so that the
+//! chains' stationary distribution, not the resampled bootstrap they start from, makes the image.
+//!
+//! Measured (2026-12-03, CPU seconds on the shared 2-core machine at load ~15; see each test):
+//! - cornell-box (64 chains × 768, bootstrap 40,000): worst |z| = 1.78, weakest power 6.1 (the
+//!   lamp's region 1; a 10% share error's z), brightness z = −0.62 (relative standard error
+//!   0.0067); acceptance bidirectional 19.1%, lens 64.7%; 35 CPU s with the wrong variant below.
+//! - cornell-glossy (64 × 1024): worst |z| = 1.65, weakest power 6.0; ~20 CPU s.
+//! - cornell-glass, all (1024 chains × 2048, bidirectional weight 2, `ALL_GLASS`): worst |z| = 3.49
+//!   (region 13), weakest power 5.5 (region 14); caustic / multi-chain proposals accepted 13,252 /
+//!   5,359 in the first render; 58 CPU s.
+//! - cornell-glass, bidirectional + caustic and + multi-chain (1024 × 1536): worst |z| = 1.39 and
+//!   1.95, weakest power 6.2 and 5.2 (region 14); accepted 27,648 (83%) and 9,124 (31%); 104 CPU s.
+//!
+//! **Wrong chains**: the box's test asserts that the bidirectional T without the addition-length
+//! probability fails (|z| = 42.6 at 256 mutations per pixel); the ignored `pmlt_wrong_perturbations_fail_on_cornell_glossy_and_glass`
+//! showed the lens perturbation's T with the connection's G failing at |z| = 54.3 (glossy) and
+//! 67.3 (glass). The multi-chain perturbation's wrong variant is its χ² test's (perturb_tests.rs).
 
 use std::path::Path;
 
 mod common;
 use common::agreement::{
-    assert_brightness_agrees, assert_shares_agree, region_means, render_regions, share_agreement, RENDERS, Z_CRITICAL,
+    assert_brightness_agrees, assert_shares_agree_with_image, image_share_agreement, region_means, render_regions,
+    GRID, RENDERS, Z_CRITICAL,
 };
 use common::binary::{plexus, stderr, temp_dir, tiny_scene};
 
 use plexus::camera::Camera;
+use plexus::film::exr_io::read_exr;
 use plexus::film::Image;
 use plexus::integrator::path_space::bidirectional::Bidirectional;
+use plexus::integrator::path_space::caustic::Caustic;
+use plexus::integrator::path_space::lens::Lens;
 use plexus::integrator::path_space::Pmlt;
 use plexus::integrator::{create, Budget, Integrator, NoProgress, RenderJob};
 use plexus::scene::{load_scene, Scene};
@@ -50,8 +76,15 @@ fn render(scene: &Scene, params: &str, mpp: u64, seed: u64, threads: usize) -> (
     (out.image, out.extra_stats)
 }
 
-/// One pmlt configuration of an agreement test: its label and its `[integrator]` table.
-type Config = (&'static str, &'static str);
+/// One pmlt configuration of an agreement test: its label, its `[integrator]` table, the
+/// perturbations that must have been exercised (selected and accepted, `EXERCISED_FLOOR`) and those
+/// that must never have been suitable on the scene (selected 0 times although their weight is on).
+struct Config {
+    label: &'static str,
+    params: &'static str,
+    exercised: &'static [&'static str],
+    never_suitable: &'static [&'static str],
+}
 
 /// The region means of `RENDERS` independent pmlt renders (seeds as `render_regions`), each
 /// finite and dropping nothing, and the first render's statistics (so the acceptance figures cost no
@@ -78,29 +111,58 @@ fn pmlt_with(params: &str) -> Pmlt {
     Pmlt::from_params(&table).expect("settings")
 }
 
-/// Each configuration's region shares against one set of path-traced renders of `name` at
-/// `SIZE`×`SIZE`, with the power check (`assert_shares_agree`); prints each strategy's
-/// acceptance. Returns the scene, the path tracer's region means and the last configuration's
-/// (for the brightness and wrong-variant checks, which reuse them).
-fn pmlt_agrees_with(
-    name: &str,
-    configs: &[Config],
-    mpp: u64,
-    (reference_integrator, spp): (&str, u64),
-) -> (Scene, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+/// A committed low-noise reference of a scene (`references/<name>.exr`: the path tracer at 4096
+/// spp, 128×128, max_depth 8 as here, seed 1000003, `scripts/make-references.sh`; the JSON beside
+/// it records the run). The share tests compare against it with tests/common/agreement.rs's
+/// `image_share_agreement` (the same 4×4 regions of the same film: region means are area
+/// averages, so the resolution does not matter with the box filter; the reference's noise
+/// estimated from its pixels, `relative_noise_of_region_means`). Its noise is estimated from
+/// ~1000 pixel differences per region, so z is a Student t with about the method's 15 degrees of
+/// freedom, as in `share_agreement`'s bound.
+fn reference(name: &str) -> Image {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("references").join(format!("{name}.exr"));
+    read_exr(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// A strategy's figures in a render's statistics, by name: (selected, accepted).
+fn strategy_counts(stats: &serde_json::Value, name: &str) -> (u64, u64) {
+    let s = stats["strategies"].as_array().into_iter().flatten().find(|s| s["name"] == name);
+    s.map(|s| (s["selected"].as_u64().unwrap_or(0), s["accepted"].as_u64().unwrap_or(0))).unwrap_or((0, 0))
+}
+
+/// An exercised perturbation must have had at least this many proposals accepted in the first
+/// render (of about a million iterations: the caustic and multi-chain perturbations are suitable
+/// only on the few paths through the glass sphere, ~1% of the iterations).
+const EXERCISED_FLOOR: u64 = 1000;
+
+/// Each configuration's region shares against the committed reference of `name` at `SIZE`×`SIZE`,
+/// with the power check (`assert_shares_agree_with_image`); prints each strategy's acceptance
+/// and asserts the configuration's exercised and never-suitable perturbations. Returns the scene,
+/// the reference and the last configuration's renders (for the brightness check).
+fn pmlt_agrees_with(name: &str, configs: &[Config], mpp: u64) -> (Scene, Image, Vec<Vec<f64>>) {
     let scene = scene(name, SIZE);
-    let reference = render_regions(&scene, reference_integrator, "max_depth = 8", spp, 3, RENDERS);
+    let reference = reference(name);
     let mut last = Vec::new();
-    for (label, params) in configs {
-        let (renders, stats) = pmlt_regions(&scene, &pmlt_with(params), mpp);
-        let what = format!("pmlt ({label}) vs {reference_integrator} on {name}");
-        assert_shares_agree(&what, &renders, &reference);
+    for config in configs {
+        let (renders, stats) = pmlt_regions(&scene, &pmlt_with(config.params), mpp);
+        let what = format!("pmlt ({}) vs the pt reference on {name}", config.label);
         for s in stats["strategies"].as_array().into_iter().flatten() {
             println!(
                 "{what}: {} selected {} accepted {} (acceptance {:.3})",
                 s["name"], s["selected"], s["accepted"], s["acceptance"]
             );
         }
+        for &p in config.exercised {
+            let (selected, accepted) = strategy_counts(&stats, p);
+            assert!(
+                accepted >= EXERCISED_FLOOR,
+                "{what}: {p} hardly exercised: selected {selected}, accepted {accepted}"
+            );
+        }
+        for &p in config.never_suitable {
+            assert_eq!(strategy_counts(&stats, p).0, 0, "{what}: {p} was suitable on {name}");
+        }
+        assert_shares_agree_with_image(&what, &renders, &reference, GRID);
         last = renders;
     }
     (scene, reference, last)
@@ -112,67 +174,137 @@ fn pmlt_agrees_with(
 const SIZE: u32 = 32;
 /// The strategies of the agreement tests: the bidirectional mutation with each perturbation alone,
 /// and all of them (the defaults).
-const LENS: Config =
-    ("bidirectional + lens", "max_depth = 8\nbootstrap = 20000\nchains = 64\ncaustic = 0\nmulti_chain = 0");
-const CAUSTIC: Config =
-    ("bidirectional + caustic", "max_depth = 8\nbootstrap = 20000\nchains = 64\nlens = 0\nmulti_chain = 0");
-const MULTI_CHAIN: Config =
-    ("bidirectional + multi-chain", "max_depth = 8\nbootstrap = 20000\nchains = 64\nlens = 0\ncaustic = 0");
-const ALL: Config = ("all strategies", "max_depth = 8\nbootstrap = 20000\nchains = 64");
+const LENS: Config = Config {
+    label: "bidirectional + lens",
+    params: "max_depth = 8\nbootstrap = 20000\nchains = 1024\ncaustic = 0\nmulti_chain = 0",
+    exercised: &["lens"],
+    never_suitable: &[],
+};
+const CAUSTIC: Config = Config {
+    label: "bidirectional + caustic",
+    params: "max_depth = 8\nbootstrap = 20000\nchains = 1024\nlens = 0\nmulti_chain = 0",
+    exercised: &["caustic"],
+    never_suitable: &[],
+};
+const MULTI_CHAIN: Config = Config {
+    label: "bidirectional + multi-chain",
+    params: "max_depth = 8\nbootstrap = 20000\nchains = 1024\nlens = 0\ncaustic = 0",
+    exercised: &["multi_chain"],
+    never_suitable: &[],
+};
+const ALL: Config = Config {
+    label: "all strategies",
+    params: "max_depth = 8\nbootstrap = 20000\nchains = 1024",
+    exercised: &["lens", "caustic", "multi_chain"],
+    never_suitable: &[],
+};
+/// All strategies on the glass box, the bidirectional mutation's weight doubled (1/2 of the
+/// selections where any perturbation is suitable, the perturbations sharing the other half): at the
+/// default 1/3 the sphere's regions 10 and 14 stayed below the power check at 1024 chains × 2048
+/// mutations per pixel (a 10% share error at |z| = 4.1 and 4.9), the lens perturbation's small
+/// steps mixing the chains between the sphere's small bright features (the lamp's image in it,
+/// the caustic) more slowly than the bidirectional mutation's jumps.
+const ALL_GLASS: Config =
+    Config { params: "max_depth = 8\nbootstrap = 20000\nchains = 1024\nbidirectional = 2", ..ALL };
+/// All strategies on a scene without specular surfaces: the caustic and multi-chain perturbations
+/// are never suitable there (both need a specular vertex), so "all" is the bidirectional mutation
+/// with the lens perturbation, and "bidirectional + caustic" or "+ multi-chain" would be the
+/// bidirectional mutation alone; asserted instead of rendered.
+const ALL_WITHOUT_SPECULAR: Config = Config {
+    label: "all strategies",
+    params: "max_depth = 8\nbootstrap = 20000\nchains = 64",
+    exercised: &["lens"],
+    never_suitable: &["caustic", "multi_chain"],
+};
 
-/// The Cornell box: no specular vertex, so the caustic and multi-chain perturbations are never
-/// suitable and "all" is the bidirectional mutation with the lens perturbation; the brightness (b)
-/// is tested too. Wrong chain: with the addition-length probability left out of the bidirectional
+/// The box's configuration: `ALL_WITHOUT_SPECULAR` with a bootstrap twice as large, for the
+/// brightness test's power (b's relative standard error over 16 renders was 0.99% with 20,000
+/// bootstrap samples, at the 1% that the 5% power check allows).
+const BOX: Config = Config { params: "max_depth = 8\nbootstrap = 40000\nchains = 64", ..ALL_WITHOUT_SPECULAR };
+
+/// Samples per pixel of the path-traced renders the brightness is compared with (their image mean's
+/// relative standard error is ~0.2%, the bootstrap's b's ~1%).
+const BRIGHTNESS_PT_SPP: u64 = 64;
+
+/// The Cornell box: no specular vertex (`ALL_WITHOUT_SPECULAR`); the brightness (b) is tested
+/// too. Wrong chain: with the addition-length probability left out of the bidirectional
 /// mutation's T (the furnace test's wrong variant) the shares must fail.
 #[test]
 fn pmlt_agrees_with_pt_on_cornell_box() {
-    let (scene, reference, right) = pmlt_agrees_with("cornell-box", &[ALL], 768, ("pt", 1024));
-    assert_brightness_agrees("pmlt vs pt on cornell-box", &right, &reference);
-    let mut wrong = pmlt_with(ALL.1);
+    let (scene, reference, right) = pmlt_agrees_with("cornell-box", &[BOX], 768);
+    // The brightness against 16 path-traced renders (the reference image's own noise estimate is
+    // inflated by the lamp's edges, `relative_noise_of_region_means`, which only weakens the share
+    // test in the lamp's regions but would swamp the image mean's).
+    let pt = render_regions(&scene, "pt", "max_depth = 8", BRIGHTNESS_PT_SPP, 3, RENDERS);
+    assert_brightness_agrees("pmlt vs pt on cornell-box", &right, &pt);
+    let mut wrong = pmlt_with(BOX.params);
     wrong.settings.lens = 0.0;
     wrong.bidirectional = Bidirectional { omit_addition_pmf: true, ..Bidirectional::default() };
     let (renders, _) = pmlt_regions(&scene, &wrong, 256);
-    let a = share_agreement(&renders, &reference);
+    let a = image_share_agreement(&renders, &reference, GRID);
     println!("pmlt vs pt on cornell-box, T without p_a: worst |z| = {:.2}\n{}", a.worst_z, a.report());
     assert!(a.worst_z >= Z_CRITICAL, "a wrong T passed the share test: |z| = {:.2}", a.worst_z);
 }
 
-/// The glossy Cornell box (a rough gold conductor): the lens perturbation reconnects at glossy
-/// vertices too.
+/// The glossy Cornell box (a rough gold conductor and a rough plastic block, no specular surface):
+/// the lens perturbation reconnects at glossy vertices too.
 #[test]
 fn pmlt_agrees_with_pt_on_cornell_glossy() {
-    // 1024 mutations and 1536 spp: the rough-coating plastic (a darker blue block) left region 8
-    // at power 4.9 with 768 / 1024.
-    pmlt_agrees_with("cornell-glossy", &[ALL], 1024, ("pt", 1536));
+    pmlt_agrees_with("cornell-glossy", &[ALL_WITHOUT_SPECULAR], 1024);
 }
 
 /// The glass Cornell box with all strategies: the glass sphere seen directly (E S S D L, the lens
 /// perturbation's retrace), the caustic on the floor (E D S S L, the caustic perturbation) and
-/// caustics seen through the sphere (E S S D S S L, the multi-chain perturbation). The reference
-/// is BDPT (tested against the path tracer in tests/bdpt.rs), whose light-tracing techniques see
-/// the floor caustic with far less variance than the path tracer, which would otherwise dominate
-/// the share test's noise in the sphere's regions.
-///
-/// Not run by default: the shares agree but the power check fails. Measured (2026-12-02, 32×32, 64
-/// chains × 1024 mutations per pixel, BDPT 256 spp): worst |z| = 1.84, but a 10% share error would
-/// reach only |z| = 3.0 in region 10 and 2.1 in region 14 (the sphere), 5 needed; about 6× the
-/// mutations (or a less noisy reference) would be needed, beyond the test budget.
+/// caustics seen through the sphere (E S S D S S L, the multi-chain perturbation).
 #[test]
-#[ignore = "power check fails in the sphere's regions 10 and 14 at this budget (see doc comment)"]
-fn pmlt_agrees_with_bdpt_on_cornell_glass() {
-    pmlt_agrees_with("cornell-glass", &[ALL], 1024, ("bdpt", 256));
+fn pmlt_agrees_with_pt_on_cornell_glass() {
+    pmlt_agrees_with("cornell-glass", &[ALL_GLASS], 2048);
 }
 
-/// Each perturbation alone with the bidirectional mutation on the glass box (as above). Not run by
-/// default: three more sets of 16 renders, beyond issues 13 and 14's test budget.
+/// Each perturbation alone with the bidirectional mutation on the glass box (as above).
 #[test]
-#[ignore = "three more sets of 16 renders: beyond the test budget (run with --ignored)"]
-fn pmlt_each_perturbation_agrees_with_bdpt_on_cornell_glass() {
-    pmlt_agrees_with("cornell-glass", &[LENS, CAUSTIC, MULTI_CHAIN], 1024, ("bdpt", 256));
+fn pmlt_each_perturbation_agrees_with_pt_on_cornell_glass() {
+    pmlt_agrees_with("cornell-glass", &[CAUSTIC, MULTI_CHAIN], 1536);
 }
 
-/// Same seed and thread count: the same bits; another thread count too (chains are the driver's
-/// units, applied in unit order); another seed: another image.
+/// The lens perturbation alone with the bidirectional mutation on the glass box. Not run by
+/// default: in `pmlt_agrees_with_pt_on_cornell_glass` the lens perturbation makes 98% of the
+/// perturbations' selections (the caustic and multi-chain perturbations are suitable on ~1.6% of
+/// the iterations), so this run differs from that one in those iterations only, at its cost again.
+#[test]
+#[ignore = "all but the same run as pmlt_agrees_with_pt_on_cornell_glass (see doc comment)"]
+fn pmlt_lens_alone_agrees_with_pt_on_cornell_glass() {
+    pmlt_agrees_with("cornell-glass", &[LENS], 2048);
+}
+
+/// The share test's **wrong variants** on the glossy and glass scenes (the box's runs in its
+/// test): renders at the glossy and glass tests' settings with the lens perturbation's T as if
+/// the connection edge had been traced (`Lens::connection_g_in_t`, the χ² test's wrong variant),
+/// and, on the glass box with the caustic perturbation, T per projected solid angle at the pivot
+/// (`Caustic::omit_pivot_cos`). Prints each run's worst |z|; asserts the lens variant fails on both
+/// scenes. Not run by default (the cost of the two agreement tests again: 137 CPU s). Measured
+/// (2026-12-03): the lens variant |z| = 54.3 (glossy) and 67.3 (glass); the caustic variant only
+/// |z| = 2.46, not seen: at Veach's kernel width (~0.01 rad at the caustic's pivot here) a move
+/// changes the pivot's cosine too little to shift the image measurably, which is why its χ² test
+/// (perturb_tests.rs) widens the kernel; there it is rejected (χ² = 191.9, p = 1e-12).
+#[test]
+#[ignore = "the glossy and glass agreement tests' cost again (see doc comment)"]
+fn pmlt_wrong_perturbations_fail_on_cornell_glossy_and_glass() {
+    for (name, config, mpp) in [("cornell-glossy", ALL_WITHOUT_SPECULAR, 1024), ("cornell-glass", ALL, 2048)] {
+        let scene = scene(name, SIZE);
+        let mut wrong = pmlt_with(config.params);
+        wrong.lens = Lens { connection_g_in_t: true };
+        let a = image_share_agreement(&pmlt_regions(&scene, &wrong, mpp).0, &reference(name), GRID);
+        println!("{name}, lens T with the connection's G: worst |z| = {:.2}\n{}", a.worst_z, a.report());
+        assert!(a.worst_z >= Z_CRITICAL, "{name}: a wrong lens T passed: |z| = {:.2}", a.worst_z);
+    }
+    let scene = scene("cornell-glass", SIZE);
+    let mut wrong = pmlt_with(CAUSTIC.params);
+    wrong.caustic = Caustic { omit_pivot_cos: true };
+    let a = image_share_agreement(&pmlt_regions(&scene, &wrong, 1536).0, &reference("cornell-glass"), GRID);
+    println!("cornell-glass, caustic T without the pivot's |cos|: worst |z| = {:.2}\n{}", a.worst_z, a.report());
+}
+
 #[test]
 fn pmlt_is_deterministic() {
     let scene = scene("cornell-glass", 16);
