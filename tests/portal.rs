@@ -299,12 +299,17 @@ fn breakfast_window_reference_parts() -> Vec<Image> {
 /// need ~6× the mutations (~600 CPU s) to reach the power check. Measured on 4×4 and 3×3 at these
 /// settings: the shares agree too (worst |z| 2.11 and 1.97) but 3 and 2 regions lack power.
 ///
-/// Measured (2026-12-03, load ~17 on 2 cores, 105 CPU s for the test binary): worst |z| = 0.83
-/// (region 1); a 10% share error would reach z = 6.4, 9.8, 9.0, 16.4 in regions 0–3 (region 0's
-/// share 0.22 is below `POWER_SHARE_FLOOR`); acceptance bidirectional 2.1%, lens 34.8%, portal
-/// 54.7%. The wrong variant (the ratio without its G terms) is rejected by the portal-planes
-/// test above: the same `PortalPerturbation` acceptance code, where G varies 4.5× across the
-/// reflector; here the environment endpoint's G is the |cos| at x*_p alone.
+/// Measured (2026-12-03, load ~17 on 2 cores, 113.6 CPU s for the test binary alone): worst |z| =
+/// 0.83 (region 1); a 10% share error would reach z = 6.4, 9.8, 9.0, 16.4 in regions 0–3 (region
+/// 0's share 0.22 is below `POWER_SHARE_FLOOR`); acceptance bidirectional 2.1%, lens 34.8%,
+/// portal 54.7%.
+///
+/// The wrong variant (the ratio without its G terms) is rejected by the portal-planes test above,
+/// the same `PortalPerturbation` acceptance code where G varies 4.5× across the reflector. This
+/// test alone does **not** reject it (measured at these settings: worst |z| = 4.49, region 0's
+/// share −6.7%, the others within 2%): here the environment endpoint's G is only the |cos| at
+/// x*_p, which the sun's nearly parallel rays through the window keep almost constant, and the
+/// portal move is a quarter of the mutations.
 #[test]
 fn pmlt_portal_agrees_with_the_reference_on_breakfast_window() {
     let scene = scene("breakfast-window", 32);
