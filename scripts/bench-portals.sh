@@ -23,6 +23,7 @@
 #   SCENES   scene names with a reference in references/ [portal-planes breakfast-window veach-ajar]
 #   TRACE    mutations of the trace (every EVERY-th point kept) [250000]
 #   EVERY    trace spacing in mutations  [50]
+#   BOOTSTRAP pmlt bootstrap paths (both configurations; part of each render's time) [20000]
 #   OUTDIR   images, JSON, CSV           [/tmp/bench-portals]
 # Prints a Markdown table (mean rRMSE over the seeds ± its standard error, the ratio Ours/MLT with
 # the standard error of the per-seed difference) and the traces' τ_y.
@@ -34,6 +35,7 @@ threads=${THREADS:-2}
 scenes=${SCENES:-portal-planes breakfast-window veach-ajar}
 trace_mutations=${TRACE:-250000}
 every=${EVERY:-50}
+bootstrap=${BOOTSTRAP:-20000}
 outdir=${OUTDIR:-/tmp/bench-portals}
 source scripts/plexus-binary.sh
 plexus_binary bench-portals scenes/portal-planes.toml
@@ -41,7 +43,7 @@ mkdir -p "$outdir"
 cargo build --release --quiet --example pmlt-trace
 trace_bin="${CARGO_TARGET_DIR:-target}/release/examples/pmlt-trace"
 
-common=(bidirectional=2.0 lens=2.0 caustic=0.0 multi_chain=0.0)
+common=(bidirectional=2.0 lens=2.0 caustic=0.0 multi_chain=0.0 bootstrap=$bootstrap)
 mlt_set=("${common[@]}" portal=0.0)
 ours_set=("${common[@]}" portal=2.0)
 set_flags() { for kv in "$@"; do printf -- '--set\n%s\n' "$kv"; done; }
@@ -109,7 +111,7 @@ for config in mlt ours; do
     declare -n args=${config}_set
     printf '%s: ' "$config"
     nice "$trace_bin" scenes/portal-planes.toml 1 "$trace_mutations" "$every" "$outdir/trace-$config.csv" \
-        bootstrap=20000 "${args[@]}"
+        "${args[@]}"
 done
 python3 scripts/portal_trace_svg.py "$outdir/portal-trace.svg" "MLT=$outdir/trace-mlt.csv" "Ours=$outdir/trace-ours.csv"
 echo "trace plot: $outdir/portal-trace.svg"

@@ -35,3 +35,12 @@ done
 # reference noise must stay well below the chains'.
 "$PLEXUS" reference scenes/breakfast-window.toml --integrator pt --spp $((SPP * 8)) --seed "$SEED" \
     --resolution 32x32 --set max_depth=8 --out references/breakfast-window.exr
+# breakfast-window's share test (tests/portal.rs) needs the reference's noise, which one image
+# cannot give honestly (estimated from its pixels at 32×32, the room's edges count as noise): 16
+# independent pt renders of 2048 spp (seeds SEED + k), whose spread measures the reference side's
+# variance the same way the 16 pmlt renders measure theirs. Together 32,768 spp, as the image above.
+mkdir -p references/breakfast-window-parts
+for k in $(seq 1 16); do
+    "$PLEXUS" reference scenes/breakfast-window.toml --integrator pt --spp $((SPP / 2)) --seed $((SEED + k)) \
+        --resolution 32x32 --set max_depth=8 --out "references/breakfast-window-parts/$(printf %02d "$k").exr"
+done
