@@ -8,7 +8,7 @@
 //! # The share test against a committed reference
 //! portal-planes' reference is one image, not 16 independent renders, so the reference side's
 //! variance of a region's share is estimated from the image's own pixels
-//! ([`relative_noise_of_region_means`]; the window interior's reference is 16 renders instead, see
+//! (common `relative_noise_of_region_means`; the window interior's reference is 16 renders instead, see
 //! its test); Welch's z is (m − m_ref)/√(v + v_ref) with v the
 //! variance of the mean share over the 16 pmlt renders, bounded by |z| < 5 (Bonferroni over 16
 //! regions, tests/common/agreement.rs), and the power check asks that a 10% error of any region's
@@ -18,7 +18,8 @@ use std::path::Path;
 
 mod common;
 use common::agreement::{
-    mean_and_variance_of_mean, region_means, shares, GRID, POWER_SHARE_FLOOR, REGIONS, RENDERS, SHARE_ERROR, Z_CRITICAL,
+    assert_shares_agree, assert_shares_agree_with_image, image_share_agreement, region_means, region_means_on, GRID,
+    RENDERS, Z_CRITICAL,
 };
 
 use plexus::camera::Camera;
@@ -28,7 +29,6 @@ use plexus::integrator::path_space::portal::PortalPerturbation;
 use plexus::integrator::path_space::Pmlt;
 use plexus::integrator::{Budget, Integrator, NoProgress, RenderJob};
 use plexus::scene::{load_scene, Scene};
-use plexus::spectrum::luminance;
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -79,70 +79,6 @@ fn portal_regions(scene: &Scene, params: &str, mpp: u64, omit_geometry: bool) ->
     (images.iter().map(region_means).collect(), stats)
 }
 
-/// The luminance noise of each region's mean in `image` (regions as `region_means`), relative to
-/// the image mean, from second differences of horizontally adjacent pixels: for independent pixel
-/// noise σ², E[(v_{x+1} − 2v_x + v_{x−1})²] = 6σ², and a smooth image gradient drops out to first
-/// order (what is left of the image's curvature and edges only inflates the estimate, which makes
-/// the share test more conservative and its power check harder to pass).
-fn relative_noise_of_region_means(image: &Image) -> Vec<f64> {
-    let lum = |x: usize, y: usize| luminance(image.get(x, y)) as f64;
-    let mean = region_means(image)[REGIONS];
-    let region = |x: usize, y: usize| (y * GRID / image.height) * GRID + x * GRID / image.width;
-    let (mut sq, mut diffs, mut pixels) = (vec![0.0; REGIONS], vec![0usize; REGIONS], vec![0usize; REGIONS]);
-    for y in 0..image.height {
-        for x in 0..image.width {
-            let r = region(x, y);
-            pixels[r] += 1;
-            if x >= 1 && x + 1 < image.width && region(x - 1, y) == r && region(x + 1, y) == r {
-                sq[r] += (lum(x + 1, y) - 2.0 * lum(x, y) + lum(x - 1, y)).powi(2);
-                diffs[r] += 1;
-            }
-        }
-    }
-    (0..REGIONS).map(|r| (sq[r] / (6.0 * diffs[r] as f64) / pixels[r] as f64).sqrt() / mean).collect()
-}
-
-/// The share test against a committed reference (module docs): per region Welch's z and the z a
-/// 10% share error would reach. Returns (z, power z) per region and prints them.
-fn shares_against_reference(what: &str, renders: &[Vec<f64>], reference_image: &Image) -> (Vec<f64>, Vec<f64>) {
-    let reference = shares(&[region_means(reference_image)]).remove(0);
-    let (mean, variance) = mean_and_variance_of_mean(&shares(renders));
-    let noise = relative_noise_of_region_means(reference_image);
-    let (mut z, mut power) = (Vec::new(), Vec::new());
-    for r in 0..REGIONS {
-        let sd = (variance[r] + noise[r] * noise[r]).sqrt();
-        z.push((mean[r] - reference[r]) / sd);
-        power.push(SHARE_ERROR * reference[r] / sd);
-        println!(
-            "  {what}, region {r:2}: share {:.4} vs {:.4}  z = {:+.2}  (a 10% error: z = {:.1}; reference noise {:.2} of \
-             the chain's)",
-            mean[r],
-            reference[r],
-            z[r],
-            power[r],
-            noise[r] / variance[r].sqrt()
-        );
-    }
-    (z, power)
-}
-
-/// Asserts the power check and then agreement (module docs); returns the worst |z|.
-fn assert_agrees_with_reference(what: &str, renders: &[Vec<f64>], reference_image: &Image) -> f64 {
-    let (z, power) = shares_against_reference(what, renders, reference_image);
-    let reference = shares(&[region_means(reference_image)]).remove(0);
-    for r in 0..REGIONS {
-        assert!(
-            reference[r] < POWER_SHARE_FLOOR || power[r] > Z_CRITICAL,
-            "{what}: too weak in region {r} (a 10% error: z = {:.2})",
-            power[r]
-        );
-    }
-    let worst = z.iter().fold(0.0f64, |w, z| w.max(z.abs()));
-    println!("{what}: worst |z| = {worst:.2}");
-    assert!(worst < Z_CRITICAL, "{what}: region shares disagree (|z| = {worst:.2})");
-    worst
-}
-
 /// Prints each strategy's acceptance from a render's statistics.
 fn print_acceptance(what: &str, stats: &serde_json::Value) {
     for s in stats["strategies"].as_array().into_iter().flatten() {
@@ -183,7 +119,7 @@ fn pmlt_portal_agrees_with_the_reference_on_portal_planes() {
     let (renders, stats) = portal_regions(&scene, PORTAL_PLANES_PARAMS, PORTAL_PLANES_MPP, false);
     print_acceptance(what, &stats);
     assert_eq!(stats["strategies"][1]["name"], "portal");
-    assert_agrees_with_reference(what, &renders, &reference("portal-planes"));
+    assert_shares_agree_with_image(what, &renders, &reference("portal-planes"), GRID);
 }
 
 /// **Wrong variant**, rejected by the same test at the same settings: the portal perturbation
@@ -199,72 +135,10 @@ fn pmlt_portal_without_g_terms_fails_on_portal_planes() {
     let scene = scene("portal-planes", 32);
     let what = "pmlt (bidirectional + portal without the G terms) vs the reference on portal-planes";
     let (renders, _) = portal_regions(&scene, PORTAL_PLANES_PARAMS, PORTAL_PLANES_MPP, true);
-    let (z, _) = shares_against_reference(what, &renders, &reference("portal-planes"));
-    let worst = z.iter().fold(0.0f64, |w, z| w.max(z.abs()));
-    println!("{what}: worst |z| = {worst:.2}");
+    let a = image_share_agreement(&renders, &reference("portal-planes"), GRID);
+    let worst = a.worst_z;
+    println!("{what}: worst |z| = {worst:.2}\n{}", a.report());
     assert!(worst >= Z_CRITICAL, "{what}: the ratio without G passed the share test (|z| = {worst:.2})");
-}
-
-/// Luminance means of the `grid`×`grid` regions (row by row), then of the whole image. (The same
-/// function as `region_means_on` on the emlt branch's tests/common/agreement.rs; local here until
-/// the two branches meet.)
-fn region_means_on(image: &Image, grid: usize) -> Vec<f64> {
-    let regions = grid * grid;
-    let (mut sums, mut counts) = (vec![0.0f64; regions + 1], vec![0usize; regions + 1]);
-    for y in 0..image.height {
-        for x in 0..image.width {
-            let v = luminance(image.get(x, y)) as f64;
-            let r = (y * grid / image.height) * grid + x * grid / image.width;
-            sums[r] += v;
-            counts[r] += 1;
-            sums[regions] += v;
-            counts[regions] += 1;
-        }
-    }
-    sums.iter().zip(&counts).map(|(s, &c)| s / c.max(1) as f64).collect()
-}
-
-/// The share test of tests/common/agreement.rs (`share_agreement`, `assert_shares_agree`) on
-/// `grid`×`grid` regions, between two sets of 16 independent renders: per region, each render's
-/// share (region mean ÷ the same render's image mean), Welch's z of the mean shares with both
-/// sides' variances measured from their renders' spread (≥ 15 degrees of freedom, |z| <
-/// Z_CRITICAL = 5, Bonferroni as there), and the power check (a `SHARE_ERROR` = 10% error of any
-/// region's share holding at least `POWER_SHARE_FLOOR` of the average share reaches |z| = 5).
-/// Returns the worst |z|.
-fn assert_shares_agree_on(what: &str, method: &[Image], reference: &[Image], grid: usize) -> f64 {
-    let regions = grid * grid;
-    let shares = |images: &[Image]| -> Vec<Vec<f64>> {
-        images
-            .iter()
-            .map(|image| {
-                let means = region_means_on(image, grid);
-                assert!(means[regions] > 0.0, "a black render has no region shares");
-                means[..regions].iter().map(|m| m / means[regions]).collect()
-            })
-            .collect()
-    };
-    let (ma, va) = mean_and_variance_of_mean(&shares(method));
-    let (mb, vb) = mean_and_variance_of_mean(&shares(reference));
-    let (mut worst, mut weak) = (0.0f64, Vec::new());
-    for r in 0..regions {
-        let sd = (va[r] + vb[r]).sqrt();
-        let (z, power) = ((ma[r] - mb[r]) / sd, SHARE_ERROR * mb[r] / sd);
-        worst = worst.max(z.abs());
-        if mb[r] >= POWER_SHARE_FLOOR && !(power > Z_CRITICAL) {
-            weak.push(r);
-        }
-        println!(
-            "  {what}, {grid}×{grid} region {r}: share {:.4} vs {:.4}  z = {z:+.2}  (a 10% error: z = {power:.1}; the \
-             reference's standard error {:.2} of the chains')",
-            ma[r],
-            mb[r],
-            (vb[r] / va[r]).sqrt()
-        );
-    }
-    println!("{what}: {grid}×{grid} regions, worst |z| = {worst:.2}");
-    assert!(weak.is_empty(), "{what}: too weak in regions {weak:?} ({grid}×{grid})");
-    assert!(worst < Z_CRITICAL, "{what}: region shares disagree (|z| = {worst:.2})");
-    worst
 }
 
 /// The window interior's reference: 16 independent pt renders of 2048 spp at 32×32
@@ -283,7 +157,8 @@ fn breakfast_window_reference_parts() -> Vec<Image> {
 /// (bidirectional 1/2, the local half shared by the lens and the portal perturbation: weights
 /// 2, 2, 2), 1024 chains (at 64 chains the shares' noise was ~2.6× higher at equal mutations: the
 /// chains stay long on the sun patch), 2048 mutations per pixel, against 16 independent pt renders
-/// (`breakfast_window_reference_parts`), by [`assert_shares_agree_on`] on 2×2 regions.
+/// (`breakfast_window_reference_parts`), by tests/common/agreement.rs's `assert_shares_agree` on 2×2 regions
+/// (both sides' variances from their renders' spread, ≥ 15 degrees of freedom).
 ///
 /// The reference is 16 renders, not one image, because one image's noise can only be estimated
 /// from its pixels, and at 32×32 this room's edges (table, chairs, the window frame's stripes in
@@ -317,5 +192,7 @@ fn pmlt_portal_agrees_with_the_reference_on_breakfast_window() {
     let what = "pmlt (bidirectional + lens + portal) vs the reference on breakfast-window";
     let (renders, stats) = portal_renders(&scene, params, 2048, false);
     print_acceptance(what, &stats);
-    assert_shares_agree_on(what, &renders, &breakfast_window_reference_parts(), 2);
+    // Quadrants (the doc comment says why): common's share test on 2×2 region means of both sides.
+    let quadrants = |images: &[Image]| images.iter().map(|i| region_means_on(i, 2)).collect::<Vec<_>>();
+    assert_shares_agree(what, &quadrants(&renders), &quadrants(&breakfast_window_reference_parts()));
 }
