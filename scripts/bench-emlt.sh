@@ -11,9 +11,12 @@
 #   MPP      mutations per pixel (--spp of the chain integrators: mpp × pixels mutations in all)  [64]
 #   SEEDS    seeds 0 .. SEEDS-1          [5]
 #   THREADS  render threads              [2]
-#   METHODS  compared integrators        [emlt pmlt]
+#   METHODS  compared integrators        [emlt pmlt]; an entry NAME:KEY=VALUE,KEY=VALUE runs NAME
+#            with those settings (--set) under the entry's own label, e.g. emlt:ensemble_size=1024
 #   SCENES   scenes with a reference in references/   [cornell-box veach-ajar]
 #   OUT      results directory           [docs/bench/emlt]
+#   SECTION_OUTS  results directories the docs section is written from, in order   [$OUT]
+#            (a probe with other METHODS in its own OUT joins the main table this way)
 #
 # Every method runs at its defaults (`plexus render --integrator X` would do the same): pmlt's
 # portal perturbation is on (weight 2) on veach-ajar, whose scene has a doorway portal; emlt has
@@ -56,10 +59,15 @@ for scene in "${scenes[@]}"; do
     for seed in $(seq 0 $((seeds - 1))); do
         for i in $(seq 0 $((count - 1))); do
             method=${methods[$(((i + seed) % count))]}
-            image="$tmp/$scene-$method-$seed.exr"
+            integrator=${method%%:*} sets=()
+            if [[ $method == *:* ]]; then
+                IFS=, read -r -a pairs <<< "${method#*:}"
+                for pair in "${pairs[@]}"; do sets+=(--set "$pair"); done
+            fi
+            image="$tmp/$scene-${method//[:=,]/_}-$seed.exr"
             before=$(load1)
             /usr/bin/time -f '%U %S %e' -o "$tmp/time" "$plexus" reference "scenes/$scene.toml" \
-                --integrator "$method" --spp "$mpp" --seed "$seed" --threads "$threads" \
+                --integrator "$integrator" "${sets[@]}" --spp "$mpp" --seed "$seed" --threads "$threads" \
                 --resolution "$res" --set "max_depth=$depth" --out "$image" 2> "$tmp/log" ||
                 { cat "$tmp/log" >&2; exit 1; }
             "$plexus" compare --json "$image" "references/$scene.exr" > "$tmp/compare.json"
@@ -89,4 +97,5 @@ PY
     done
 done
 
-python3 scripts/bench_emlt_section.py "$out" docs/benchmarks.md
+read -r -a section_outs <<< "${SECTION_OUTS:-$out}"
+python3 scripts/bench_emlt_section.py docs/benchmarks.md "${section_outs[@]}"

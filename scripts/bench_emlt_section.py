@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """The `emlt` vs `pmlt` section of docs/benchmarks.md from scripts/bench-emlt.sh's runs.
 
-Usage: scripts/bench_emlt_section.py OUT_DIR BENCHMARKS_MD
+Usage: scripts/bench_emlt_section.py BENCHMARKS_MD OUT_DIR [OUT_DIR ...]
 
-Reads OUT_DIR/runs.jsonl and OUT_DIR/machine.txt, writes OUT_DIR/runs.csv and replaces the text
+Reads each OUT_DIR/runs.jsonl and OUT_DIR/machine.txt, writes OUT_DIR/runs.csv and replaces the text
 between `<!-- emlt-bench:begin -->` and `<!-- emlt-bench:end -->` in BENCHMARKS_MD (appending the
 section with its heading if the markers are missing). Means are over seeds with their standard
 error (sample standard deviation / sqrt(n)); the ratio emlt/pmlt is of the means, with its
@@ -31,9 +31,17 @@ def fmt(m, se):
 
 
 def main():
-    out, page = sys.argv[1], sys.argv[2]
-    runs = [json.loads(line) for line in open(os.path.join(out, "runs.jsonl")) if line.strip()]
-    machine = open(os.path.join(out, "machine.txt")).read().strip()
+    page, outs = sys.argv[1], sys.argv[2:]
+    all_runs, machines = [], []
+    for out in outs:
+        runs = [json.loads(line) for line in open(os.path.join(out, "runs.jsonl")) if line.strip()]
+        machines.append(f"{out}: " + open(os.path.join(out, "machine.txt")).read().strip())
+        write_csv(out, runs)
+        all_runs += runs
+    write_section(page, all_runs, machines)
+
+
+def write_csv(out, runs):
     fields = ["scene", "method", "seed", "mse", "relmse", "mean_ratio", "mutations", "render_wall_s",
               "process_wall_s", "cpu_s", "acceptance", "guided_share", "load1_before"]
     with open(os.path.join(out, "runs.csv"), "w", newline="") as f:
@@ -45,13 +53,15 @@ def main():
                              for s in r["strategies"])
             w.writerow([r[k] for k in fields] + [strat])
 
+
+def write_section(page, runs, machines):
     scenes = list(dict.fromkeys(r["scene"] for r in runs))
     methods = list(dict.fromkeys(r["method"] for r in runs))
     seeds = sorted({r["seed"] for r in runs})
     mpp = sorted({round(r["mutations_per_pixel"]) for r in runs})
     lines = [BEGIN, ""]
     lines.append(f"`scripts/bench-emlt.sh` (MPP={'/'.join(map(str, mpp))}, seeds "
-                 f"{seeds[0]}–{seeds[-1]}): {machine}. Loads before each render from "
+                 f"{seeds[0]}–{seeds[-1]}): {'; '.join(machines)}. Loads before each render from "
                  f"{min(r['load1_before'] for r in runs):.1f} to {max(r['load1_before'] for r in runs):.1f}. "
                  "MSE and relMSE (ε = 0.01) of `plexus compare` against the committed references, "
                  "at the reference's resolution and max_depth 8; mean ± standard error over seeds; "
@@ -68,8 +78,9 @@ def main():
             (a, sa), (b, sb) = mean_se([r["mse"] for r in by["emlt"]]), mean_se([r["mse"] for r in by["pmlt"]])
             q = a / b
             ratio = f"{q:.2f} ± {q * math.hypot(sa / a, sb / b):.2f}"
-        res = "×".join(map(str, by[methods[0]][0]["resolution"]))
-        for m in methods:
+        present = [m for m in methods if by[m]]
+        res = "×".join(map(str, by[present[0]][0]["resolution"]))
+        for m in present:
             rs = by[m]
             guided = [r["guided_share"] for r in rs if r["guided_share"] is not None]
             lines.append("| " + " | ".join([
@@ -92,6 +103,8 @@ def main():
     for scene in scenes:
         for m in methods:
             rs = [r for r in runs if r["scene"] == scene and r["method"] == m]
+            if not rs:
+                continue
             names = list(dict.fromkeys(s["name"] for r in rs for s in r["strategies"]))
             cells = []
             for name in names:
