@@ -64,7 +64,7 @@ fn new_strategies_run_and_the_ablation_switch_turns_them_off() {
 
     let env = scene("environment", 16);
     for kernel in ["directional", "hemispherical"] {
-        let s = stats(&env, &format!("{base}\nenvironment_kernel = \"{kernel}\""), 32);
+        let s = stats(&env, &format!("{base}\nperturbations = \"all\"\nenvironment_kernel = \"{kernel}\""), 32);
         let (sel, acc) = acceptance(&s, "environment");
         let (g, f) = guided(&s, "environment");
         println!("environment, {kernel}: selected {sel}, accepted {acc}; guided {g}, fallback {f}");
