@@ -271,6 +271,10 @@ fn pmlt_each_perturbation_agrees_with_pt_on_cornell_glass() {
 /// default: in `pmlt_agrees_with_pt_on_cornell_glass` the lens perturbation makes 98% of the
 /// perturbations' selections (the caustic and multi-chain perturbations are suitable on ~1.6% of
 /// the iterations), so this run differs from that one in those iterations only, at its cost again.
+/// Note that this configuration keeps the default bidirectional weight (1/3 of the iterations),
+/// where the "all" run uses 2 (1/2) for power: measured (2026-12-03, idle, 59 CPU s) the shares
+/// agree (worst |z| = 2.28) but the power check fails in region 10 (the sphere), as the "all"
+/// run's did at the default weight, so as it stands this test fails its power check.
 #[test]
 #[ignore = "all but the same run as pmlt_agrees_with_pt_on_cornell_glass (see doc comment)"]
 fn pmlt_lens_alone_agrees_with_pt_on_cornell_glass() {
