@@ -109,21 +109,26 @@ fn update(x: DVec2, others: &[DVec2], kernel: &StretchKernel, variant: Variant, 
 }
 
 /// Runs `runs` independent ensemble pairs of `n` walkers each for `sweeps` half-iterations
-/// (X updated with Y fixed, then the swap) and returns every walker's final state.
-fn run(variant: Variant, runs: u64, n: usize, sweeps: usize) -> Vec<DVec2> {
-    let kernel = StretchKernel { alpha: 1.0 };
+/// (X updated with Y fixed, then the swap: Algorithm 1 on a toy) and returns every walker's final
+/// state. Walker i of run r draws from its own stream (`seed` + r, i); `draw` gives each its exact
+/// start, `update(x, guides, rng)` one walker's Metropolis–Hastings step against the fixed
+/// complementary ensemble. Shared by this toy and `toy_anisotropic`.
+pub(super) fn run_ensembles(
+    seed: u64,
+    (runs, n, sweeps): (u64, usize, usize),
+    draw: impl Fn(&mut Rng) -> DVec2,
+    update: impl Fn(DVec2, &[DVec2], &mut Rng) -> DVec2,
+) -> Vec<DVec2> {
     let mut all = Vec::with_capacity(runs as usize * 2 * n);
     for r in 0..runs {
-        let mut rngs: Vec<Rng> = (0..2 * n as u64).map(|i| Rng::new(0xE115 + r, i)).collect();
-        let mut ensembles: [Vec<DVec2>; 2] = [
-            (0..n).map(|i| draw_target(&mut rngs[i])).collect(),
-            (n..2 * n).map(|i| draw_target(&mut rngs[i])).collect(),
-        ];
+        let mut rngs: Vec<Rng> = (0..2 * n as u64).map(|i| Rng::new(seed + r, i)).collect();
+        let mut ensembles: [Vec<DVec2>; 2] =
+            [(0..n).map(|i| draw(&mut rngs[i])).collect(), (n..2 * n).map(|i| draw(&mut rngs[i])).collect()];
         for sweep in 0..sweeps {
             let (moving, guides) = if sweep % 2 == 0 { (0, 1) } else { (1, 0) };
             let guide_states = ensembles[guides].clone();
             for (i, x) in ensembles[moving].iter_mut().enumerate() {
-                *x = update(*x, &guide_states, &kernel, variant, &mut rngs[moving * n + i]);
+                *x = update(*x, &guide_states, &mut rngs[moving * n + i]);
             }
         }
         all.extend(ensembles.into_iter().flatten());
@@ -131,18 +136,23 @@ fn run(variant: Variant, runs: u64, n: usize, sweeps: usize) -> Vec<DVec2> {
     all
 }
 
-fn chi2_of(states: &[DVec2]) -> Chi2Outcome {
-    let z = adaptive_integrate_2d(&|p: [f64; 2]| target(DVec2::new(p[0], p[1])), [0.0, 8.0], [0.0, 8.0], 1e-9, 3, 14);
+fn run(variant: Variant, runs: u64, n: usize, sweeps: usize) -> Vec<DVec2> {
+    let kernel = StretchKernel { alpha: 1.0 };
+    run_ensembles(0xE115, (runs, n, sweeps), draw_target, |x, guides, rng| update(x, guides, &kernel, variant, rng))
+}
+
+/// The walkers' final `states` against the unnormalised `target` on [0, 8]² by χ² on 16×16 bins
+/// (the target normalised by adaptive integration).
+pub(super) fn chi2_against(states: &[DVec2], target: impl Fn(DVec2) -> f64) -> Chi2Outcome {
+    let f = |p: [f64; 2]| target(DVec2::new(p[0], p[1]));
+    let z = adaptive_integrate_2d(&f, [0.0, 8.0], [0.0, 8.0], 1e-9, 3, 14);
     let cfg = Chi2Config { res: [16, 16], samples: states.len(), test_count: 1, ..Chi2Config::default() };
     let mut next = states.iter();
-    chi2_test(
-        &cfg,
-        [0.0, 8.0],
-        [0.0, 8.0],
-        1,
-        |_| next.next().map(|p| [p.x, p.y]),
-        |p| target(DVec2::new(p[0], p[1])) / z,
-    )
+    chi2_test(&cfg, [0.0, 8.0], [0.0, 8.0], 1, |_| next.next().map(|p| [p.x, p.y]), |p| f(p) / z)
+}
+
+fn chi2_of(states: &[DVec2]) -> Chi2Outcome {
+    chi2_against(states, target)
 }
 
 /// 8 independent pairs of ensembles of 4,096 walkers, 40 half-iterations (20 updates per walker):

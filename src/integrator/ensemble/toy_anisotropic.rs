@@ -15,7 +15,8 @@ use glam::DVec2;
 
 use super::anisotropic::Gaussian2;
 use super::similarity::point_similarity;
-use crate::sampling::chi2::{adaptive_integrate_2d, chi2_test, Chi2Config, Chi2Outcome};
+use super::toy::{chi2_against, run_ensembles};
+use crate::sampling::chi2::Chi2Outcome;
 use crate::sampling::Rng;
 
 /// The ridge y ≈ 2 + 0.15 (x − 4)², Gaussian across it (σ 0.3) and along x (σ 2), truncated to
@@ -85,34 +86,14 @@ fn update(x: DVec2, others: &[DVec2], variant: Variant, rng: &mut Rng) -> DVec2 
     }
 }
 
-/// `runs` independent pairs of ensembles of `n` walkers, `sweeps` half-iterations each; every
-/// walker's final state.
+/// `runs` independent pairs of ensembles of `n` walkers, `sweeps` half-iterations each
+/// (`toy::run_ensembles`); every walker's final state.
 fn run(variant: Variant, runs: u64, n: usize, sweeps: usize) -> Vec<DVec2> {
-    let mut all = Vec::with_capacity(runs as usize * 2 * n);
-    for r in 0..runs {
-        let mut rngs: Vec<Rng> = (0..2 * n as u64).map(|i| Rng::new(0xA215 + r, i)).collect();
-        let mut ensembles: [Vec<DVec2>; 2] = [
-            (0..n).map(|i| draw_target(&mut rngs[i])).collect(),
-            (n..2 * n).map(|i| draw_target(&mut rngs[i])).collect(),
-        ];
-        for sweep in 0..sweeps {
-            let (moving, guides) = if sweep % 2 == 0 { (0, 1) } else { (1, 0) };
-            let guide_states = ensembles[guides].clone();
-            for (i, x) in ensembles[moving].iter_mut().enumerate() {
-                *x = update(*x, &guide_states, variant, &mut rngs[moving * n + i]);
-            }
-        }
-        all.extend(ensembles.into_iter().flatten());
-    }
-    all
+    run_ensembles(0xA215, (runs, n, sweeps), draw_target, |x, guides, rng| update(x, guides, variant, rng))
 }
 
 fn chi2_of(states: &[DVec2]) -> Chi2Outcome {
-    let f = |p: [f64; 2]| target(DVec2::new(p[0], p[1]));
-    let z = adaptive_integrate_2d(&f, [0.0, 8.0], [0.0, 8.0], 1e-9, 3, 14);
-    let cfg = Chi2Config { res: [16, 16], samples: states.len(), test_count: 1, ..Chi2Config::default() };
-    let mut next = states.iter();
-    chi2_test(&cfg, [0.0, 8.0], [0.0, 8.0], 1, |_| next.next().map(|p| [p.x, p.y]), |p| f(p) / z)
+    chi2_against(states, target)
 }
 
 /// 8 independent pairs of ensembles of 4,096 walkers, 40 half-iterations (20 updates per walker):
