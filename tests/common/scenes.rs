@@ -1,0 +1,26 @@
+//! The shipped scenes and committed references the agreement tests render and compare against.
+
+use std::path::Path;
+
+use plexus::camera::Camera;
+use plexus::film::exr_io::read_exr;
+use plexus::film::Image;
+use plexus::scene::{load_scene, Scene};
+
+/// `scenes/<name>.toml` with its camera at `size`×`size` pixels (the same field of view: the
+/// regions cover the same parts of the film at any size, so a reference's region means hold at
+/// every size).
+pub fn scene(name: &str, size: u32) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));
+    let mut scene = load_scene(&path, None).unwrap_or_else(|e| panic!("{}: {e}", path.display())).scene;
+    let c = &scene.camera;
+    scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, size, size);
+    scene
+}
+
+/// The committed reference image `references/<name>.exr` (how each was made: the JSON beside it and
+/// `scripts/make-references.sh`).
+pub fn reference(name: &str) -> Image {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("references").join(format!("{name}.exr"));
+    read_exr(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
