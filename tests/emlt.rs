@@ -25,34 +25,16 @@
 //! The quadrants that hold the light carry the references' noise estimate inflated by the light's
 //! edges (2–3× the chains' standard error), which only makes their test conservative.
 
-use std::path::Path;
-
 mod common;
 use common::agreement::{
     assert_shares_agree_with_image, image_share_agreement, region_means_on, GRID, RENDERS, Z_CRITICAL,
 };
+use common::scenes::{reference, scene};
 
-use plexus::camera::Camera;
-use plexus::film::exr_io::read_exr;
 use plexus::film::Image;
 use plexus::integrator::ensemble::render::Emlt;
 use plexus::integrator::{create, Budget, Integrator, NoProgress, RenderJob};
-use plexus::scene::{load_scene, Scene};
-
-fn scene(name: &str, size: u32) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));
-    let mut scene = load_scene(&path, None).unwrap_or_else(|e| panic!("{}: {e}", path.display())).scene;
-    let c = &scene.camera;
-    scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, size, size);
-    scene
-}
-
-/// The committed path-traced reference of `name` (`references/NAME.exr`: pt, max_depth 8,
-/// 4096 spp at 128×128, `scripts/make-references.sh`).
-fn reference(name: &str) -> Image {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("references").join(format!("{name}.exr"));
-    read_exr(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
+use plexus::scene::Scene;
 
 fn render(scene: &Scene, params: &str, mpp: u64, seed: u64, threads: usize) -> (Image, serde_json::Value) {
     let params: toml::Table = toml::from_str(params).expect("test parameters");

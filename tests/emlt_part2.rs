@@ -4,22 +4,12 @@
 //! strategies run in `emlt` and their images are compared with the path tracer's by region shares
 //! (tests/common/agreement.rs states the bound: Welch's |z| < 5 with the power check).
 
-use std::path::Path;
-
 mod common;
 use common::agreement::{assert_shares_agree, render_regions, RENDERS};
+use common::scenes::scene;
 
-use plexus::camera::Camera;
 use plexus::integrator::{create, Budget, NoProgress, RenderJob};
-use plexus::scene::{load_scene, Scene};
-
-fn scene(name: &str, size: u32) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));
-    let mut scene = load_scene(&path, None).unwrap_or_else(|e| panic!("{}: {e}", path.display())).scene;
-    let c = &scene.camera;
-    scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, size, size);
-    scene
-}
+use plexus::scene::Scene;
 
 /// One render's JSON statistics.
 fn stats(scene: &Scene, params: &str, mpp: u64) -> serde_json::Value {

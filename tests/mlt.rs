@@ -28,29 +28,18 @@
 //! the mutations.
 //! The path tracer's 16 renders of a scene are made once and shared by the three methods' tests.
 
-use std::path::Path;
 use std::sync::OnceLock;
 
 mod common;
 use common::agreement::{
     assert_agree, assert_brightness_agrees, assert_shares_agree, estimate, render_regions, RENDERS,
 };
+use common::scenes::scene;
 
-use plexus::camera::Camera;
 use plexus::film::Image;
 use plexus::integrator::{create, Budget, NoProgress, RenderJob};
-use plexus::scene::{load_scene, Scene};
+use plexus::scene::Scene;
 use plexus::stats::Counters;
-
-fn scene(name: &str, size: u32) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));
-    let mut scene = load_scene(&path, None).unwrap_or_else(|e| panic!("{}: {e}", path.display())).scene;
-    let c = &scene.camera;
-    if size > 0 {
-        scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, size, size);
-    }
-    scene
-}
 
 fn render(scene: &Scene, integrator: &str, params: &str, spp: u64, seed: u64) -> (Image, Counters, serde_json::Value) {
     let params: toml::Table = toml::from_str(params).expect("test parameters");

@@ -41,32 +41,21 @@
 //! showed the lens perturbation's T with the connection's G failing at |z| = 54.3 (glossy) and
 //! 67.3 (glass). The multi-chain perturbation's wrong variant is its χ² test's (perturb_tests.rs).
 
-use std::path::Path;
-
 mod common;
 use common::agreement::{
     assert_brightness_agrees, assert_shares_agree_with_image, image_share_agreement, region_means, render_regions,
     GRID, RENDERS, Z_CRITICAL,
 };
 use common::binary::{plexus, stderr, temp_dir, tiny_scene};
+use common::scenes::{reference, scene};
 
-use plexus::camera::Camera;
-use plexus::film::exr_io::read_exr;
 use plexus::film::Image;
 use plexus::integrator::path_space::bidirectional::Bidirectional;
 use plexus::integrator::path_space::caustic::Caustic;
 use plexus::integrator::path_space::lens::Lens;
 use plexus::integrator::path_space::Pmlt;
 use plexus::integrator::{create, Budget, Integrator, NoProgress, RenderJob};
-use plexus::scene::{load_scene, Scene};
-
-fn scene(name: &str, size: u32) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));
-    let mut scene = load_scene(&path, None).unwrap_or_else(|e| panic!("{}: {e}", path.display())).scene;
-    let c = &scene.camera;
-    scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, size, size);
-    scene
-}
+use plexus::scene::Scene;
 
 fn render(scene: &Scene, params: &str, mpp: u64, seed: u64, threads: usize) -> (Image, serde_json::Value) {
     let params: toml::Table = toml::from_str(params).expect("test parameters");
@@ -109,19 +98,6 @@ fn pmlt_regions(scene: &Scene, pmlt: &Pmlt, mpp: u64) -> (Vec<Vec<f64>>, serde_j
 fn pmlt_with(params: &str) -> Pmlt {
     let table: toml::Table = toml::from_str(params).expect("test parameters");
     Pmlt::from_params(&table).expect("settings")
-}
-
-/// A committed low-noise reference of a scene (`references/<name>.exr`: the path tracer at 4096
-/// spp, 128×128, max_depth 8 as here, seed 1000003, `scripts/make-references.sh`; the JSON beside
-/// it records the run). The share tests compare against it with tests/common/agreement.rs's
-/// `image_share_agreement` (the same 4×4 regions of the same film: region means are area
-/// averages, so the resolution does not matter with the box filter; the reference's noise
-/// estimated from its pixels, `relative_noise_of_region_means`). Its noise is estimated from
-/// ~1000 pixel differences per region, so z is a Student t with about the method's 15 degrees of
-/// freedom, as in `share_agreement`'s bound.
-fn reference(name: &str) -> Image {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("references").join(format!("{name}.exr"));
-    read_exr(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
 /// A strategy's figures in a render's statistics, by name: (selected, accepted).

@@ -21,32 +21,17 @@ use common::agreement::{
     assert_shares_agree, assert_shares_agree_with_image, image_share_agreement, region_means, region_means_on, GRID,
     RENDERS, Z_CRITICAL,
 };
+use common::scenes::{reference, scene};
 
-use plexus::camera::Camera;
 use plexus::film::exr_io::read_exr;
 use plexus::film::Image;
 use plexus::integrator::path_space::portal::PortalPerturbation;
 use plexus::integrator::path_space::Pmlt;
 use plexus::integrator::{Budget, Integrator, NoProgress, RenderJob};
-use plexus::scene::{load_scene, Scene};
+use plexus::scene::Scene;
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// `scenes/<name>.toml` with its camera at `size`×`size` pixels (the same field of view: the
-/// regions cover the same parts of the film at any size, so a reference's region means hold at
-/// every size).
-fn scene(name: &str, size: u32) -> Scene {
-    let path = root().join("scenes").join(format!("{name}.toml"));
-    let mut scene = load_scene(&path, None).unwrap_or_else(|e| panic!("{}: {e}", path.display())).scene;
-    let c = &scene.camera;
-    scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, size, size);
-    scene
-}
-
-fn reference(name: &str) -> Image {
-    read_exr(&root().join("references").join(format!("{name}.exr"))).expect("reference")
 }
 
 /// 16 pmlt renders of `scene` with `params` (seeds k·7919 + 3, as `render_regions`), each finite

@@ -9,12 +9,14 @@ use plexus::scene::{load_scene, Scene};
 
 /// `scenes/<name>.toml` with its camera at `size`×`size` pixels (the same field of view: the
 /// regions cover the same parts of the film at any size, so a reference's region means hold at
-/// every size).
+/// every size); `size` 0 keeps the scene's own resolution.
 pub fn scene(name: &str, size: u32) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));
     let mut scene = load_scene(&path, None).unwrap_or_else(|e| panic!("{}: {e}", path.display())).scene;
     let c = &scene.camera;
-    scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, size, size);
+    if size > 0 {
+        scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, size, size);
+    }
     scene
 }
 
