@@ -26,14 +26,12 @@
 //! edges (2–3× the chains' standard error), which only makes their test conservative.
 
 mod common;
-use common::agreement::{
-    assert_shares_agree_with_image, image_share_agreement, region_means_on, GRID, RENDERS, Z_CRITICAL,
-};
+use common::agreement::Z_CRITICAL;
+use common::ensemble::{emlt_agrees_with_reference, emlt_renders, emlt_with, share_test, SIZE};
 use common::scenes::{reference, scene};
 
 use plexus::film::Image;
-use plexus::integrator::ensemble::render::Emlt;
-use plexus::integrator::{create, Budget, Integrator, NoProgress, RenderJob};
+use plexus::integrator::{create, Budget, NoProgress, RenderJob};
 use plexus::scene::Scene;
 
 fn render(scene: &Scene, params: &str, mpp: u64, seed: u64, threads: usize) -> (Image, serde_json::Value) {
@@ -44,83 +42,6 @@ fn render(scene: &Scene, params: &str, mpp: u64, seed: u64, threads: usize) -> (
     (out.image, out.extra_stats)
 }
 
-/// `RENDERS` renders by `emlt` (seeds as `render_regions`), each finite and dropping nothing, and
-/// the first render's statistics.
-fn emlt_renders(scene: &Scene, emlt: &Emlt, mpp: u64) -> (Vec<Image>, serde_json::Value) {
-    let mut stats = serde_json::Value::Null;
-    let images = (1..=RENDERS)
-        .map(|k| {
-            let job = RenderJob { budget: Budget::SamplesPerPixel(mpp), seed: k * 7919 + 3, threads: 2 };
-            let out = emlt.render(scene, &job, &NoProgress).expect("render");
-            assert!(out.image.all_finite(), "emlt: non-finite pixels");
-            assert_eq!(out.counters.nonfinite_dropped, 0, "emlt: non-finite contributions");
-            if k == 1 {
-                stats = out.extra_stats;
-            }
-            out.image
-        })
-        .collect();
-    (images, stats)
-}
-
-fn emlt_with(params: &str) -> Emlt {
-    let table: toml::Table = toml::from_str(params).expect("test parameters");
-    Emlt::from_params(&table).expect("settings")
-}
-
-/// The share test's two grids (module docs): the power-checked 2×2 quadrants, and the 4×4 regions
-/// checked for |z| < 5 without a power claim. Returns the worst |z| of each.
-fn share_test(what: &str, images: &[Image], reference: &Image, assert_agreement: bool) -> (f64, f64) {
-    let grids: Vec<(usize, Vec<Vec<f64>>)> =
-        [COARSE, GRID].iter().map(|&g| (g, images.iter().map(|i| region_means_on(i, g)).collect())).collect();
-    let mut worst = Vec::new();
-    for (g, regions) in &grids {
-        let label = format!("{what}, {g}×{g} regions");
-        let a = if assert_agreement && *g == COARSE {
-            assert_shares_agree_with_image(&label, regions, reference, *g)
-        } else {
-            let a = image_share_agreement(regions, reference, *g);
-            println!("{label}: worst |z| = {:.2}\n{}", a.worst_z, a.report());
-            a
-        };
-        worst.push(a.worst_z);
-    }
-    if assert_agreement {
-        assert!(worst[1] < Z_CRITICAL, "{what}: the 4×4 region shares disagree (|z| = {:.2})", worst[1]);
-    }
-    (worst[0], worst[1])
-}
-
-/// emlt's region shares on `name` at `SIZE`² against the committed reference (`share_test`), and
-/// the guided share of its guided strategies' proposals (≥ 1/2, asserted; each strategy named in
-/// `guided` must have made guided proposals). Returns the first render's statistics.
-fn emlt_agrees_with_reference(name: &str, emlt: &Emlt, mpp: u64, guided: &[&str]) -> serde_json::Value {
-    let scene = scene(name, SIZE);
-    let (images, stats) = emlt_renders(&scene, emlt, mpp);
-    let what = format!("emlt vs the reference on {name}");
-    let ensemble = &stats["ensemble"];
-    for s in stats["strategies"].as_array().into_iter().flatten() {
-        let acceptance = s["acceptance"].as_f64().unwrap_or(0.0);
-        println!("{what}: {} selected {} acceptance {acceptance:.3}", s["name"], s["selected"]);
-    }
-    println!("{what}: ensemble {ensemble}");
-    share_test(&what, &images, &reference(name), true);
-    let share = ensemble["guided_share"].as_f64().expect("guided share");
-    assert!(share >= 0.5, "{what}: only {share:.3} of the guided strategies' proposals were guided");
-    for g in ensemble["guided"].as_array().into_iter().flatten() {
-        if guided.contains(&g["name"].as_str().unwrap_or("")) {
-            assert!(g["guided"].as_u64().unwrap_or(0) > 0, "{what}: {} was never guided", g["name"]);
-        }
-    }
-    stats
-}
-
-/// Image side of the agreement renders: 4×4 regions of 2×2 pixels (a region's share depends on
-/// the mutations and chains per render, not its pixels; the references' regions are the same at
-/// any resolution of the camera).
-const SIZE: u32 = 8;
-/// The power-checked grid (module docs).
-const COARSE: usize = 2;
 /// |X| = |Y| = 512 (1024 chains, `it` = 1 at 8×8, 256 mutations per chain at `MPP`), α = 0.5
 /// throughout (module docs).
 const PARAMS: &str = "max_depth = 8\nbootstrap = 20000\nensemble_size = 512\nalpha_small = 0.5";

@@ -4,4 +4,5 @@
 
 pub mod agreement;
 pub mod binary;
+pub mod ensemble;
 pub mod scenes;
