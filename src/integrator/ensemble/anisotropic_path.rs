@@ -66,7 +66,13 @@ impl GuideContext {
 
     /// The world-space kernel fitted at vertex `j` of `path` to Υ = `subset` (Eq. 11's weights).
     pub fn vertex_kernel(&self, path: &PathState, subset: &[u32], j: usize) -> VertexKernel {
-        let weights = self.view.weights(path, subset, j, j + 1, &self.counts);
+        self.vertex_kernel_weighted_by(path, path, subset, j)
+    }
+
+    /// [`Self::vertex_kernel`] with Eq. 11's weights of `weigh` instead of `path`'s (the wrong
+    /// variant of [`AnisotropicPath::reverse_reuses_forward_fit`] when they differ).
+    fn vertex_kernel_weighted_by(&self, path: &PathState, weigh: &PathState, subset: &[u32], j: usize) -> VertexKernel {
+        let weights = self.view.weights(weigh, subset, j, j + 1, &self.counts);
         let guides: Vec<DVec3> =
             subset.iter().map(|&i| self.view.paths[i as usize].vertices[j].vertex.p.as_dvec3()).collect();
         let v = &path.vertices[j].vertex;
@@ -85,9 +91,10 @@ enum FilmKernel {
 }
 
 impl FilmKernel {
-    /// The fit to Υ's raster positions with the weights of x_a.
-    fn fit(guide: &GuideContext, path: &PathState, subset: &[u32], a: usize) -> Option<FilmKernel> {
-        let weights = guide.view.weights(path, subset, a, a + 1, &guide.counts);
+    /// The fit to Υ's raster positions with the weights of x_a (those of `weigh`'s x_a: `path`
+    /// itself but in the wrong variant of [`AnisotropicPath::reverse_reuses_forward_fit`]).
+    fn fit(guide: &GuideContext, path: &PathState, weigh: &PathState, subset: &[u32], a: usize) -> Option<FilmKernel> {
+        let weights = guide.view.weights(weigh, subset, a, a + 1, &guide.counts);
         let rasters: Vec<DVec2> = subset.iter().map(|&i| guide.view.paths[i as usize].raster.as_dvec2()).collect();
         Some(match Gaussian2::fit(&rasters, &weights) {
             Some(g) => FilmKernel::Gaussian(g),
@@ -146,16 +153,23 @@ fn towards_possible(path: &[PathVertex], a: usize, b: usize) -> bool {
     a == 1 && !path[b + 1].vertex.infinite
 }
 
-/// What a proposal recorded: Υ's offset and the side it moved from.
+/// What a proposal recorded: Υ's offset and the side it moved from; `reverse` marks the reverse
+/// move (read only by the wrong variant of [`AnisotropicPath::reverse_reuses_forward_fit`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct AnisotropicMove {
     pub offset: u64,
     pub towards_camera: bool,
+    pub reverse: bool,
 }
 
 /// The anisotropic path perturbation (module docs).
 #[derive(Clone, Copy, Debug, Default)]
-pub struct AnisotropicPath;
+pub struct AnisotropicPath {
+    /// Tests only, a deliberately wrong variant: T(ȳ → x̄) fits its kernels with x̄'s similarity
+    /// weights (x̄'s Σ, recentred at ȳ) instead of refitting at ȳ; the toy test's wrong variant
+    /// (`toy_anisotropic`), here for the scene tests (tests/emlt_part2.rs).
+    pub reverse_reuses_forward_fit: bool,
+}
 
 impl Strategy for AnisotropicPath {
     type Kernel = GuideContext;
@@ -188,7 +202,7 @@ impl Strategy for AnisotropicPath {
         let subset = guide.view.subset(path, offset);
         let mut u = || [rng.uniform_f64(), rng.uniform_f64()];
         let vertices: Vec<PathVertex> = if !towards_camera {
-            let film = FilmKernel::fit(guide, path, &subset, a)?;
+            let film = FilmKernel::fit(guide, path, path, &subset, a)?;
             guide.count_fit(film.is_fallback());
             let chain = retrace(ctx, x, 0, a, &x[0].vertex, film.sample(ctx, path, u())?, counters)?;
             let y_a = chain[a - 1].vertex;
@@ -213,7 +227,7 @@ impl Strategy for AnisotropicPath {
             guide.counts.signature_changed.fetch_add(1, Ordering::Relaxed);
             return None;
         }
-        Some((y, AnisotropicMove { offset, towards_camera }))
+        Some((y, AnisotropicMove { offset, towards_camera, reverse: false }))
     }
 
     fn transition(
@@ -235,18 +249,19 @@ impl Strategy for AnisotropicPath {
         }
         let side = if possible { 0.5 } else { 1.0 };
         let subset = guide.view.subset(from, mv.offset);
+        let weigh = if self.reverse_reuses_forward_fit && mv.reverse { to } else { from };
+        let kernel = |j| guide.vertex_kernel_weighted_by(from, weigh, &subset, j);
         let at = |v: &PathVertex| (v.vertex.p.as_dvec3(), v.vertex.ng.as_dvec3().normalize());
         let t = if !mv.towards_camera {
-            let Some(film) = FilmKernel::fit(guide, from, &subset, a) else { return 0.0 };
+            let Some(film) = FilmKernel::fit(guide, from, weigh, &subset, a) else { return 0.0 };
             let (p, n) = at(&y[b]);
             film.density(ctx, from, to)
                 * retrace_jacobian(y, 0, a)
-                * guide.vertex_kernel(from, &subset, b).density_area(y[a].vertex.p.as_dvec3(), p, n)
+                * kernel(b).density_area(y[a].vertex.p.as_dvec3(), p, n)
         } else {
             let (pb, nb) = at(&y[b]);
             let (pa, na) = at(&y[a]);
-            guide.vertex_kernel(from, &subset, b).density_area(x[b + 1].vertex.p.as_dvec3(), pb, nb)
-                * guide.vertex_kernel(from, &subset, a).density_area(pb, pa, na)
+            kernel(b).density_area(x[b + 1].vertex.p.as_dvec3(), pb, nb) * kernel(a).density_area(pb, pa, na)
         };
         let t = side * t;
         if t.is_finite() {
@@ -257,6 +272,6 @@ impl Strategy for AnisotropicPath {
     }
 
     fn reverse(&self, mv: &AnisotropicMove) -> AnisotropicMove {
-        *mv
+        AnisotropicMove { reverse: !mv.reverse, ..*mv }
     }
 }

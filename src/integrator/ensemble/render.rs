@@ -53,6 +53,8 @@ pub struct Emlt {
     /// The linear lens perturbation (a value, so that tests can render with a deliberately wrong
     /// one).
     pub linear_lens: LinearLens,
+    /// The anisotropic path perturbation (a value for the same reason).
+    pub anisotropic_path: AnisotropicPath,
 }
 
 /// The ensemble part of the JSON statistics.
@@ -71,7 +73,7 @@ pub struct EnsembleReport {
 
 impl Emlt {
     pub fn from_params(params: &toml::Table) -> Result<Emlt, RenderError> {
-        Ok(Emlt { settings: EmltSettings::from_params(params)?, linear_lens: LinearLens::default() })
+        Ok(Emlt { settings: EmltSettings::from_params(params)?, ..Emlt::default() })
     }
 
     /// The pmlt whose bootstrap and chain start this render shares.
@@ -133,7 +135,7 @@ impl Emlt {
                     weight: weights[2],
                 }),
                 Box::new(Entry {
-                    strategy: AnisotropicPath,
+                    strategy: self.anisotropic_path,
                     kernel: GuideContext { view: view.clone(), counts: counts[3].clone() },
                     weight: weights[3],
                 }),

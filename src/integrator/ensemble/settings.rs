@@ -53,8 +53,8 @@ pub struct EmltSettings {
     /// Which guided perturbations run, for the paper's ablation (Table 1): "linear" (the default:
     /// linear lens, caustic and multi-chain, part 1 of the method, whose agreement with the path
     /// tracer tests/emlt.rs shows on the Cornell, glossy and glass boxes), "all" (the linear ones,
-    /// the anisotropic path and the environment perturbation: agreement shown so far on the
-    /// Cornell box and the environment scene only, tests/emlt_part2.rs) or "anisotropic" (the
+    /// the anisotropic path and the environment perturbation: agreement shown on the three boxes
+    /// and the environment scene, tests/emlt_part2.rs) or "anisotropic" (the
     /// anisotropic path perturbation only); the bidirectional mutation always.
     pub perturbations: Perturbations,
 }
