@@ -130,9 +130,9 @@ fn all_strategies_agree_on_cornell_glossy() {
     all_strategies_agree("cornell-glossy", (SIZE, SIZE), MPP, &["linear_lens", "anisotropic_path"]);
 }
 
-/// The glass Cornell box: the anisotropic path perturbation's image-plane move retraces the
-/// specular chain through the sphere (x_a after specular vertices), beside the linear caustic and
-/// multi-chain perturbations. Measured (2026-12-03, load ~14): worst |z| 1.26 (2×2, power
+/// The glass Cornell box, beside the linear caustic and multi-chain perturbations: where the camera
+/// sees the room through the sphere, the anisotropic path perturbation's image-plane move retraces
+/// the specular chain to x_a (such proposals are not counted separately). Measured (2026-12-03, load ~14): worst |z| 1.26 (2×2, power
 /// ≥ 6.9) / 1.98 (4×4); accepted: anisotropic_path 7,959 of 36,933, linear lens 114,548 of
 /// 143,174, linear caustic 1,748 of 2,272, linear multi-chain 1,096 of 2,278 (tests/emlt.rs's
 /// glass test asserts those two guided).
