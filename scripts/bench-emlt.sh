@@ -20,7 +20,9 @@
 #            names, rendered at its resolution and max_depth)   [cornell-box veach-ajar]
 #   EQUAL_TIME  1: after the equal-mutation renders, `pmlt` again per scene and seed at the
 #            mutations per pixel that cost what EQUAL_TIME_TO cost: MPP × the median over seeds
-#            of (render CPU of EQUAL_TIME_TO)/(render CPU of pmlt), labelled `pmlt@time`   [0]
+#            of (render CPU of EQUAL_TIME_TO)/(render CPU of pmlt), labelled `pmlt@time`; "only":
+#            the equal-time renders alone, appended to OUT's existing runs (an interrupted run's
+#            second half, or the equal-time pass of some scenes run beside the others)   [0]
 #   EQUAL_TIME_TO  the method label pmlt's time is matched to   [emlt]
 #   OUT      results directory           [docs/bench/emlt]
 #   SECTION  the docs section written: "emlt-bench" (issue 16's table) or "emlt17-bench" (issue
@@ -71,11 +73,18 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
 load1() { cut -d' ' -f1 /proc/loadavg; }
+machine=$out/machine.txt
+if [[ $equal_time == only ]]; then
+    machine=$tmp/machine.txt
+fi
 printf '%s, %s cores, %s GiB; plexus at commit %s; run %s UTC; %s render threads; load average %s when it started\n' \
     "$(sed -n 's/^model name[[:space:]]*: //p' /proc/cpuinfo | head -n 1)" "$(nproc)" \
     "$(awk '/MemTotal/ {printf "%.0f", $2 / 1048576}' /proc/meminfo)" \
     "$(git rev-parse --short HEAD 2>/dev/null || echo unknown)" "$(date -u '+%Y-%m-%d %H:%M')" "$threads" "$(load1)" \
-    > "$out/machine.txt"
+    > "$machine"
+if [[ $equal_time == only ]]; then
+    printf '%s' "$(cat "$out/machine.txt"); equal-time pass of ${scenes[*]}: $(cat "$machine")" > "$out/machine.txt"
+fi
 
 render_one() { # scene seed method mpp label
     local scene=$1 seed=$2 method=$3 spp=$4 label=$5 integrator=${3%%:*} sets=() pairs image before
@@ -123,20 +132,22 @@ scene_setup() { # scene: sets scene_file, res, depth and load_cpu (the CPU of lo
     load_cpu=$(awk '{print $1 + $2}' "$tmp/time")
 }
 
-: > "$out/runs.jsonl"
-count=${#methods[@]}
-for scene in "${scenes[@]}"; do
-    scene_setup "$scene"
-    for seed in $(seq 0 $((seeds - 1))); do
-        for i in $(seq 0 $((count - 1))); do
-            method=${methods[$(((i + seed) % count))]}
-            render_one "$scene" "$seed" "$method" "$mpp" "$method"
+if [[ $equal_time != only ]]; then
+    : > "$out/runs.jsonl"
+    count=${#methods[@]}
+    for scene in "${scenes[@]}"; do
+        scene_setup "$scene"
+        for seed in $(seq 0 $((seeds - 1))); do
+            for i in $(seq 0 $((count - 1))); do
+                method=${methods[$(((i + seed) % count))]}
+                render_one "$scene" "$seed" "$method" "$mpp" "$method"
+            done
         done
     done
-done
+fi
 
 # Equal time: pmlt at the mutations per pixel that cost what EQUAL_TIME_TO cost per scene.
-if [[ $equal_time == 1 ]]; then
+if [[ $equal_time == 1 || $equal_time == only ]]; then
     for scene in "${scenes[@]}"; do
         scene_setup "$scene"
         time_mpp=$(python3 - "$out/runs.jsonl" "$scene" "$equal_time_to" "$mpp" <<'PY'
