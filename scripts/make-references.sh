@@ -48,3 +48,8 @@ for k in $(seq 1 16); do
     "$PLEXUS" reference scenes/breakfast-window.toml --integrator pt --spp $((SPP / 2)) --seed $((SEED + k)) \
         --resolution 32x32 --set max_depth=8 --out "references/breakfast-window-parts/$(printf %02d "$k").exr"
 done
+# staircase (issue 17's emlt benchmark): the imported staircase (scenes/imported/staircase.toml,
+# 720×1280) at 72×128 and 1024 spp (about 60 CPU s): its pt noise is measured against a second,
+# independent 256-spp render in docs/benchmarks.md's issue 17 section.
+"$PLEXUS" reference scenes/imported/staircase.toml --integrator pt --spp $((SPP / 4)) --seed "$SEED" \
+    --resolution 72x128 --set max_depth=8 --out references/staircase.exr

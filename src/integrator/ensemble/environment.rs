@@ -18,6 +18,7 @@
 //! fallback concentration, recorded in the move so the reverse uses the same branch (Υ is the same
 //! both ways: the offset is recorded and a signature change is rejected, `tree` module docs).
 
+use std::rc::Rc;
 use std::sync::atomic::Ordering;
 
 use glam::DVec3;
@@ -75,7 +76,7 @@ pub struct Environment {
 
 impl Environment {
     /// The weights of Υ's members for `path` and their environment directions.
-    fn weighted_directions(guide: &GuideContext, path: &PathState, subset: &[u32]) -> (Vec<f64>, Vec<DVec3>) {
+    fn weighted_directions(guide: &GuideContext, path: &PathState, subset: &[u32]) -> (Rc<Vec<f64>>, Vec<DVec3>) {
         let j = path.len() - 2;
         let w = guide.view.weights(path, subset, j, j + 1, &guide.counts);
         let dirs = subset.iter().map(|&i| env_direction(&guide.view.paths[i as usize])).collect();

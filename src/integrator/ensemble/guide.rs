@@ -2,13 +2,16 @@
 //! subset Υ of a path, its film spread b_res and α (Sec. 3.1 and 3.4), and the statistics of the
 //! guided strategies (guided vs fallback proposals, time in similarity).
 
+use std::cell::RefCell;
+use std::rc::Rc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
+use glam::DVec3;
 use serde::Serialize;
 
 use super::settings::EmltSettings;
-use super::similarity::path_similarity;
+use super::similarity::{place, places_similarity};
 use super::tree::EnsembleTree;
 use crate::integrator::path_space::PathState;
 
@@ -62,13 +65,72 @@ pub struct GuideView {
     pub tree: EnsembleTree,
     pub settings: EmltSettings,
     pub film: (f64, f64),
+    /// Every path's vertex places for similarity (`similarity::place`), path after path: Eq. 9
+    /// reads these instead of the paths' full vertices (a dense array, so a proposal's M guides
+    /// cost M short reads rather than M scattered vertex records).
+    places: Vec<DVec3>,
+    /// Where each path's places start in `places` (one more entry than paths: the end).
+    place_starts: Vec<u32>,
+    /// This view's identity for the weight cache (views are numbered as they are made, so a cache
+    /// entry of an earlier view never matches a later one at the same address).
+    id: u64,
+}
+
+/// Views made so far (`GuideView::id`).
+static VIEWS: AtomicU64 = AtomicU64::new(0);
+
+/// The weights of one `GuideView::weights` call with everything they depend on (module
+/// `GuideView::weights` docs).
+struct CachedWeights {
+    view: u64,
+    j: usize,
+    k: usize,
+    subset: Vec<u32>,
+    /// The bits of x's places j ..= k.
+    x_places: Vec<[u64; 3]>,
+    weights: Rc<Vec<f64>>,
+}
+
+/// The last few weight vectors computed on this thread (a Metropolis step computes the weights at
+/// x̄ for the proposal and again for T(x̄ → ȳ), and the anisotropic kernels fit twice per step).
+#[derive(Default)]
+struct WeightCache {
+    entries: Vec<CachedWeights>,
+    next: usize,
+}
+
+/// Entries of the weight cache: a step's proposal and both densities use at most four weight
+/// vectors (the anisotropic path perturbation: film and vertex fits at x̄, the same at ȳ).
+const WEIGHT_CACHE_ENTRIES: usize = 4;
+
+thread_local! {
+    static WEIGHT_CACHE: RefCell<WeightCache> = RefCell::new(WeightCache::default());
+}
+
+fn place_bits(p: DVec3) -> [u64; 3] {
+    p.to_array().map(f64::to_bits)
 }
 
 impl GuideView {
     pub fn new(paths: Vec<PathState>, settings: &EmltSettings, width: u32, height: u32) -> GuideView {
         let refs: Vec<&PathState> = paths.iter().collect();
         let tree = EnsembleTree::build(&refs);
-        GuideView { paths, tree, settings: settings.clone(), film: (width as f64, height as f64) }
+        let mut places = Vec::with_capacity(paths.iter().map(|p| p.len()).sum());
+        let mut place_starts = Vec::with_capacity(paths.len() + 1);
+        for p in &paths {
+            place_starts.push(places.len() as u32);
+            places.extend(p.vertices.iter().map(place));
+        }
+        place_starts.push(places.len() as u32);
+        GuideView {
+            paths,
+            tree,
+            settings: settings.clone(),
+            film: (width as f64, height as f64),
+            places,
+            place_starts,
+            id: VIEWS.fetch_add(1, Ordering::Relaxed),
+        }
     }
 
     /// Υ of `path` for the offset a proposal drew (`tree` module docs).
@@ -95,12 +157,87 @@ impl GuideView {
         self.settings.alpha(self.b_res(subset))
     }
 
-    /// The similarity weights S(x̄, v̄, j, k) (Eq. 9) of Υ's members, timed into `counts`.
-    pub fn weights(&self, x: &PathState, subset: &[u32], j: usize, k: usize, counts: &GuideCounts) -> Vec<f64> {
-        let start = Instant::now();
-        let w = subset.iter().map(|&i| path_similarity(&x.vertices, &self.paths[i as usize].vertices, j, k)).collect();
-        counts.similarity_ns.fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
-        w
+    /// The places of Y's path `i`.
+    fn places_of(&self, i: u32) -> &[DVec3] {
+        let i = i as usize;
+        &self.places[self.place_starts[i] as usize..self.place_starts[i + 1] as usize]
+    }
+
+    /// The similarity weights S(x̄, v̄, j, k) (Eq. 9) of Υ's members (0 for a path shorter than
+    /// k + 1 vertices), timed into `counts` when computed.
+    ///
+    /// They depend only on this view, Υ, j, k and x's places j ..= k, so a call with the same
+    /// inputs on the same thread returns the vector computed before (`WeightCache`: the forward
+    /// density T(x̄ → ȳ) refits at x̄ with the proposal's weights); equal inputs give equal weights
+    /// to the bit either way, so the cache changes no statistic.
+    pub fn weights(&self, x: &PathState, subset: &[u32], j: usize, k: usize, counts: &GuideCounts) -> Rc<Vec<f64>> {
+        if k >= x.len() {
+            return Rc::new(vec![0.0; subset.len()]);
+        }
+        let x_places = &x.vertices[j..=k];
+        let matches = |e: &CachedWeights| {
+            e.view == self.id
+                && e.j == j
+                && e.k == k
+                && e.subset == subset
+                && e.x_places.iter().zip(x_places).all(|(a, b)| *a == place_bits(place(b)))
+        };
+        WEIGHT_CACHE.with(|cache| {
+            let mut cache = cache.borrow_mut();
+            if let Some(hit) = cache.entries.iter().find(|e| matches(e)) {
+                return hit.weights.clone();
+            }
+            let start = Instant::now();
+            let xp: Vec<DVec3> = x_places.iter().map(place).collect();
+            let fill = |w: &mut Vec<f64>| {
+                w.clear();
+                w.extend(subset.iter().map(|&i| {
+                    let v = self.places_of(i);
+                    if k >= v.len() {
+                        0.0
+                    } else {
+                        places_similarity(&xp, &v[j..=k])
+                    }
+                }));
+            };
+            let entry = if cache.entries.len() < WEIGHT_CACHE_ENTRIES {
+                let mut w = Vec::with_capacity(subset.len());
+                fill(&mut w);
+                cache.entries.push(CachedWeights {
+                    view: self.id,
+                    j,
+                    k,
+                    subset: subset.to_vec(),
+                    x_places: Vec::new(),
+                    weights: Rc::new(w),
+                });
+                cache.entries.len() - 1
+            } else {
+                let at = cache.next;
+                cache.next = (at + 1) % WEIGHT_CACHE_ENTRIES;
+                let e = &mut cache.entries[at];
+                // Reuse the evicted entry's buffer unless a caller still holds it.
+                match Rc::get_mut(&mut e.weights) {
+                    Some(w) => fill(w),
+                    None => {
+                        let mut w = Vec::with_capacity(subset.len());
+                        fill(&mut w);
+                        e.weights = Rc::new(w);
+                    }
+                }
+                e.view = self.id;
+                e.j = j;
+                e.k = k;
+                e.subset.clear();
+                e.subset.extend_from_slice(subset);
+                at
+            };
+            let e = &mut cache.entries[entry];
+            e.x_places.clear();
+            e.x_places.extend(xp.iter().map(|&p| place_bits(p)));
+            counts.similarity_ns.fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+            e.weights.clone()
+        })
     }
 }
 

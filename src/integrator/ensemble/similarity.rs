@@ -36,7 +36,7 @@ pub fn point_similarity(x: DVec3, v: DVec3) -> f64 {
 }
 
 /// Where a vertex is, for similarity: its position, or its direction for a vertex at infinity.
-fn place(v: &PathVertex) -> DVec3 {
+pub fn place(v: &PathVertex) -> DVec3 {
     if v.vertex.infinite {
         v.vertex.dir.as_dvec3()
     } else {
@@ -55,6 +55,13 @@ pub fn path_similarity(x: &[PathVertex], v: &[PathVertex], j: usize, k: usize) -
         return 0.0;
     }
     (j..=k).map(|l| vertex_similarity(&x[l], &v[l])).product()
+}
+
+/// Eq. 9's product for vertices already reduced to their places: S(x_l, v_l) over the pairs of
+/// `x` and `v` in order (the same product as `path_similarity` over the same vertices, to the bit:
+/// the same factors folded from 1 in the same order).
+pub fn places_similarity(x: &[DVec3], v: &[DVec3]) -> f64 {
+    x.iter().zip(v).fold(1.0, |s, (&a, &b)| s * point_similarity(a, b))
 }
 
 #[cfg(test)]
