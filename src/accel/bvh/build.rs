@@ -89,8 +89,18 @@ impl Node {
 pub struct BuildParams {
     /// Leaves hold at most this many triangles (≥ 1).
     pub max_leaf: usize,
-    /// SAH cost of visiting an interior node, relative to one ray–triangle test.
+    /// SAH cost of visiting an interior node, relative to one test of a packet of four triangles
+    /// (`triangle::intersect4_k`): a leaf of `n` triangles costs `ceil(n / 4)` (`packets`).
     pub traversal_cost: f32,
+}
+
+/// Triangles per leaf packet (`triangle::Tri4`).
+pub(super) const PACKET: usize = 4;
+
+/// The SAH cost of intersecting `n` triangles: the number of packets they fill.
+#[inline]
+fn packets(n: usize) -> f32 {
+    n.div_ceil(PACKET) as f32
 }
 
 impl Default for BuildParams {
@@ -239,7 +249,8 @@ struct Split {
 }
 
 /// Sweeps the bins of every axis and returns the split with the least SAH cost
-/// `C_trav + (A_L N_L + A_R N_R) / A` in units of one triangle test (the leaf alternative costs `N`).
+/// `C_trav + (A_L P(N_L) + A_R P(N_R)) / A` in units of one packet test, `P(n) = ceil(n / 4)` the
+/// packets of `n` triangles (the leaf alternative costs `P(N)`).
 fn best_split(bins: &Bins, nb: usize, parent_area: f32, centroid_extent: Vec3, params: &BuildParams) -> Option<Split> {
     let mut best: Option<Split> = None;
     for (axis, axis_bins) in bins.iter().enumerate() {
@@ -256,7 +267,7 @@ fn best_split(bins: &Bins, nb: usize, parent_area: f32, centroid_extent: Vec3, p
             acc = acc.union(&axis_bins[i].bounds);
             count += axis_bins[i].count;
             right_count[i] = count;
-            right_cost[i] = acc.surface_area() * count as f32;
+            right_cost[i] = acc.surface_area() * packets(count as usize);
         }
         let mut acc = Aabb::EMPTY;
         let mut left_count = 0u32;
@@ -266,7 +277,8 @@ fn best_split(bins: &Bins, nb: usize, parent_area: f32, centroid_extent: Vec3, p
             if left_count == 0 || right_count[i] == 0 {
                 continue;
             }
-            let cost = params.traversal_cost + (acc.surface_area() * left_count as f32 + right_cost[i]) / parent_area;
+            let cost = params.traversal_cost
+                + (acc.surface_area() * packets(left_count as usize) + right_cost[i]) / parent_area;
             if best.as_ref().is_none_or(|b| cost < b.cost) {
                 best = Some(Split { axis, bin: i, cost });
             }
@@ -300,7 +312,7 @@ fn partition(prims: &mut [BuildPrim], left: impl Fn(Vec3) -> bool) -> (usize, Aa
 const SWEEP_PRIMS: usize = 12;
 
 /// The exact-SAH split of a small range: on each axis, the primitives sorted by centroid and
-/// every one of the `n - 1` cuts evaluated (`C_trav + (A_L N_L + A_R N_R) / A`, as
+/// every one of the `n - 1` cuts evaluated (`C_trav + (A_L P(N_L) + A_R P(N_R)) / A`, as
 /// `best_split`). Leaves `prims` sorted on the best axis and returns the cut and its cost.
 fn sweep_split(prims: &mut [BuildPrim], parent_area: f32, params: &BuildParams) -> Option<(usize, f32)> {
     let n = prims.len();
@@ -317,8 +329,8 @@ fn sweep_split(prims: &mut [BuildPrim], parent_area: f32, params: &BuildParams) 
         let mut acc = Aabb::EMPTY;
         for i in 1..n {
             acc = acc.union(&Aabb { min: prims[i - 1].min, max: prims[i - 1].max });
-            let cost =
-                params.traversal_cost + (acc.surface_area() * i as f32 + right_area[i] * (n - i) as f32) / parent_area;
+            let cost = params.traversal_cost
+                + (acc.surface_area() * packets(i) + right_area[i] * packets(n - i)) / parent_area;
             if best.is_none_or(|b| cost < b.2) {
                 best = Some((axis, i, cost));
             }
@@ -357,7 +369,7 @@ fn split(prims: &mut [BuildPrim], r: &Range, params: &BuildParams) -> Option<(Ra
     if r.depth < SAH_DEPTH && c_extent.max_element() > 0.0 {
         if n <= SWEEP_PRIMS {
             let (mid, cost) = sweep_split(slice, r.ext.bounds.surface_area(), params)?;
-            if n <= params.max_leaf && cost >= n as f32 {
+            if n <= params.max_leaf && cost >= packets(n) {
                 return None;
             }
             let (l, rt) = (extent_seq(&slice[..mid]), extent_seq(&slice[mid..]));
@@ -368,7 +380,7 @@ fn split(prims: &mut [BuildPrim], r: &Range, params: &BuildParams) -> Option<(Ra
         let binner = Binner { origin: r.ext.centroids.min, scale, bins: nb };
         let bins = bin_all(slice, &binner);
         if let Some(s) = best_split(&bins, nb, r.ext.bounds.surface_area(), c_extent, params) {
-            if n <= params.max_leaf && s.cost >= n as f32 {
+            if n <= params.max_leaf && s.cost >= packets(n) {
                 return None;
             }
             let (mid, lc, rc) = partition(slice, |c| binner.bin(c, s.axis) < s.bin);

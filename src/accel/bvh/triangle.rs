@@ -196,6 +196,129 @@ pub fn intersect_triangle_k<const KZ: usize>(
     Some((t, v * inv_det, w * inv_det))
 }
 
+/// Four triangles' vertices in SIMD rows, for [`intersect4_k`]: row `3 * i + axis` holds coordinate
+/// `axis` of vertex `i` of the four triangles (lanes). 144 bytes, the same 36 per triangle as
+/// three `Vec3`s; lanes a leaf does not fill are NaN and masked off by the caller.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(16))]
+pub struct Tri4 {
+    pub v: [[f32; 4]; 9],
+}
+
+impl Tri4 {
+    pub const EMPTY: Tri4 = Tri4 { v: [[f32::NAN; 4]; 9] };
+
+    pub fn set(&mut self, lane: usize, tri: [Vec3; 3]) {
+        for (i, p) in tri.iter().enumerate() {
+            for axis in 0..3 {
+                self.v[3 * i + axis][lane] = p[axis];
+            }
+        }
+    }
+
+    pub fn get(&self, lane: usize) -> [Vec3; 3] {
+        let r = &self.v;
+        std::array::from_fn(|i| Vec3::new(r[3 * i][lane], r[3 * i + 1][lane], r[3 * i + 2][lane]))
+    }
+}
+
+/// What [`intersect4_k`] found: the lanes hit within the interval and, per lane, `t`, `b1`, `b2`
+/// (meaningful in the hit lanes only).
+#[derive(Clone, Copy, Debug)]
+pub struct Hits4 {
+    pub mask: u32,
+    pub t: [f32; 4],
+    pub b1: [f32; 4],
+    pub b2: [f32; 4],
+}
+
+impl Hits4 {
+    /// The nearest hit lane, the last of equals: the lane a sequential loop that accepts
+    /// `t <= t_max` and lowers `t_max` to each hit would end with.
+    #[inline(always)]
+    pub fn nearest(&self) -> Option<usize> {
+        let mut mask = self.mask;
+        let mut best: Option<usize> = None;
+        while mask != 0 {
+            let lane = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            if best.is_none_or(|b| self.t[lane] <= self.t[b]) {
+                best = Some(lane);
+            }
+        }
+        best
+    }
+}
+
+/// [`intersect_triangle_k`] on the four triangles of `tri` at once (the lanes set in `valid`), each
+/// against the same `[t_min, t_max]`. Every lane's answer is bit for bit the scalar test's: the
+/// SIMD path does the scalar test's f32 operations in the same order (Rust contracts nothing into
+/// FMA), and a packet with a lane that needs the scalar test's special cases (an edge function
+/// exactly zero, or an accepted `t` within its rounding bound δt, or non-finite bounds) is handed
+/// to the scalar test lane by lane.
+#[inline(always)]
+pub fn intersect4_k<const KZ: usize>(pre: &RayPre, tri: &Tri4, valid: u32, t_min: f32, t_max: f32) -> Hits4 {
+    debug_assert_eq!(pre.kz, KZ);
+    let kx = (KZ + 1) % 3;
+    let ky = (KZ + 2) % 3;
+    let row = |i: usize| Vec4::from_array(tri.v[i]);
+    let (ox, oy, oz) = (Vec4::splat(pre.o[kx]), Vec4::splat(pre.o[ky]), Vec4::splat(pre.o[KZ]));
+    let (s0, s1, sz) = (Vec4::splat(pre.s[0]), Vec4::splat(pre.s[1]), Vec4::splat(pre.s[2]));
+    // `RayPre::transform`, four lanes at once.
+    let vertex = |i: usize| {
+        let z = row(3 * i + KZ) - oz;
+        ((row(3 * i + kx) - ox) - s0 * z, (row(3 * i + ky) - oy) - s1 * z, z)
+    };
+    let (ax, ay, az) = vertex(0);
+    let (bx, by, bz) = vertex(1);
+    let (cx, cy, cz) = vertex(2);
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    let zero = Vec4::ZERO;
+    let scalar = |lanes: u32| {
+        let mut h = Hits4 { mask: 0, t: [0.0; 4], b1: [0.0; 4], b2: [0.0; 4] };
+        for lane in 0..4 {
+            if lanes & (1 << lane) != 0 {
+                let [a, b, c] = tri.get(lane);
+                if let Some((t, b1, b2)) = intersect_triangle_k::<KZ>(pre, a, b, c, t_min, t_max) {
+                    h.mask |= 1 << lane;
+                    (h.t[lane], h.b1[lane], h.b2[lane]) = (t, b1, b2);
+                }
+            }
+        }
+        h
+    };
+    if (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & valid != 0 {
+        return scalar(valid);
+    }
+    let outside = (u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero)) & (u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero));
+    let det = u + v + w;
+    let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
+    let inv_det = Vec4::ONE / det;
+    let t = t_scaled * inv_det;
+    let inside = t.cmpge(Vec4::splat(t_min)) & t.cmple(Vec4::splat(t_max)) & det.cmpne(zero);
+    let mask = inside.bitmask() & !outside.bitmask() & valid;
+    if mask == 0 {
+        return Hits4 { mask: 0, t: [0.0; 4], b1: [0.0; 4], b2: [0.0; 4] };
+    }
+    // δt as in the scalar test (see there); lanes with t ≤ δt (or a NaN δt) go to the scalar test.
+    let max_zt = az.abs().max(bz.abs()).max(cz.abs()) * sz.abs();
+    let max_xt = ax.abs().max(bx.abs()).max(cx.abs());
+    let max_yt = ay.abs().max(by.abs()).max(cy.abs());
+    let (g2, g3, g5) = (Vec4::splat(gamma(2)), Vec4::splat(gamma(3)), Vec4::splat(gamma(5)));
+    let delta_z = g3 * max_zt;
+    let delta_x = g5 * (max_xt + max_zt);
+    let delta_y = g5 * (max_yt + max_zt);
+    let delta_e = Vec4::splat(2.0) * (g2 * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let max_e = u.abs().max(v.abs()).max(w.abs());
+    let delta_t = Vec4::splat(3.0) * (g3 * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+    if t.cmpgt(delta_t).bitmask() & mask != mask {
+        return scalar(valid);
+    }
+    Hits4 { mask, t: t.to_array(), b1: (v * inv_det).to_array(), b2: (w * inv_det).to_array() }
+}
+
 /// The ray parameter t at which `o + t·d` meets the plane of `(v0, v1, v2)`, in double precision:
 /// t = n·(v0 − o) / n·d with n = (v1 − v0) × (v2 − v0). Differences of f32 values are exact in f64,
 /// so only the products round. NaN when the ray is parallel to the plane.
