@@ -306,6 +306,7 @@ fn tiny_render_writes_exr_png_and_json() {
     assert!(json["rays"].as_u64().is_some_and(|r| r >= 8 * 6 * 4));
     assert!(json["rays_per_s"].as_f64().is_some_and(|r| r > 0.0));
     assert!(json["wall_time_s"].as_f64().is_some_and(|t| t > 0.0));
+    assert!(json["cpu_time_s"].as_f64().is_some_and(|t| t > 0.0 && t.is_finite()));
     assert_eq!(json["counters"]["nonfinite_dropped"], 0);
     assert_eq!(json["scene_features"]["area_lights"], 1);
     assert!(json["integrator_stats"].is_object());

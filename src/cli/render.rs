@@ -207,6 +207,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         bar_wanted(),
     )
     .with_previews(args.preview_every.map(|every_seconds| Previews { every_seconds, outputs: images.clone() }));
+    let cpu_start = plexus::bench::timing::process_cpu_time();
     let rendered = if integrator.supports_sessions() {
         integrator.render_session(scene, &job, &progress, &session)
     } else {
@@ -228,6 +229,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         })
     };
     progress.finish();
+    let cpu_time = plexus::bench::timing::process_cpu_time().saturating_sub(cpu_start);
     let rendered = rendered?;
     let file = StateFile { header, state: rendered.state };
     if file.state.interrupted && state_paths.is_empty() {
@@ -256,6 +258,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         images.clone(),
     );
     stats.run = state_io::run_info(&file, &state_paths, None, 0);
+    stats.cpu_time_s = Some(cpu_time.as_secs_f64());
     let stats_files = state_io::write_stats(&images, &state_paths, &stats)?;
     let written: Vec<PathBuf> = images.iter().chain(&state_paths).chain(&stats_files).cloned().collect();
     state_io::finish(&stats, &written, &file, &state_paths)

@@ -28,6 +28,10 @@ pub struct RenderStats {
     pub load_time_s: f64,
     /// Seconds spent rendering (the integrator's own measurement).
     pub wall_time_s: f64,
+    /// CPU seconds the process (all its threads) spent during the render: on a shared machine
+    /// the cost that the load does not inflate as it does the wall time. Null where no render ran
+    /// in this process (merges).
+    pub cpu_time_s: Option<f64>,
     /// Closest-hit plus shadow queries.
     pub rays: u64,
     pub rays_per_s: f64,
@@ -81,6 +85,7 @@ impl RenderStats {
             resolution: [output.image.width as u32, output.image.height as u32],
             load_time_s,
             wall_time_s: wall,
+            cpu_time_s: None,
             rays,
             rays_per_s: rate(rays),
             samples: output.counters.samples,

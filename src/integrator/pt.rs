@@ -157,7 +157,23 @@ impl PathTracer {
 
         loop {
             counters.rays += 1;
-            let Some(si) = scene.intersect(&ray) else {
+            let hit = scene.hit(&ray);
+            // The vertex's two blocks of uniforms (light sample; BSDF sample and roulette) are
+            // drawn here, between the hit and the read of its triangle, so that the Sobol
+            // arithmetic overlaps the two dependent cache misses of `interaction` (the indices,
+            // then the vertices they name): the same numbers in the same order as drawing them
+            // where they are used. Only where a vertex is sure to draw them: not at the last depth,
+            // and not in masked scenes, where the hit may turn out to be no surface.
+            let early = match &hit {
+                Some(hit) if !scene.masked && depth < self.settings.max_depth => {
+                    let u_light: [f32; 4] = rng.next_n();
+                    scene.prefetch_vertices(hit);
+                    let u_bsdf: [f32; 4] = rng.next_n();
+                    Some((u_light, u_bsdf))
+                }
+                _ => None,
+            };
+            let Some(si) = hit.and_then(|hit| scene.interaction(&ray, &hit)) else {
                 if let Some((index, env)) = scene.environment_light() {
                     let le = env.environment_radiance(ray.d);
                     let w = if specular_bounce {
@@ -199,8 +215,9 @@ impl PathTracer {
             let wo = frame.to_local(-ray.d);
 
             // Next-event estimation (its uniforms are drawn even when unused, so that the stream
-            // position depends only on the path's vertices).
-            let u_light: [f32; 4] = rng.next_n();
+            // position depends only on the path's vertices). Nothing is drawn between the two
+            // blocks, so drawing both here is drawing them where they are used.
+            let (u_light, [u0, u1, u2, u_rr]) = early.unwrap_or_else(|| (rng.next_n(), rng.next_n()));
             if use_nee && !material.is_specular() {
                 let (index, pmf, _) = scene.light_sampler.distribution.sample_discrete(u_light[0]);
                 let light = &scene.lights[index];
@@ -223,7 +240,6 @@ impl PathTracer {
             }
 
             // Continue the path by sampling the BSDF.
-            let [u0, u1, u2, u_rr] = rng.next_n::<4>();
             let Some(bs) = material.sample(wo, [u0, u1, u2], TransportMode::Radiance) else { break };
             // Also rejects a NaN pdf.
             if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO {

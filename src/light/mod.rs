@@ -96,6 +96,8 @@ pub struct AreaLight {
     pub two_sided: bool,
     /// Triangle choice proportional to area.
     pub triangles: Distribution1D,
+    /// Unit geometric normal of each triangle (`area::triangle_normal`), kept for light sampling.
+    pub normals: Vec<Vec3>,
     pub area: f32,
 }
 

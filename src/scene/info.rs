@@ -180,7 +180,9 @@ impl Scene {
             .lights
             .iter()
             .map(|l| match l {
-                Light::Area(a) => distribution_bytes(&a.triangles),
+                Light::Area(a) => {
+                    distribution_bytes(&a.triangles) + a.normals.capacity() * std::mem::size_of::<glam::Vec3>()
+                }
                 Light::ConstantEnvironment(_) => 0,
                 Light::ImageEnvironment(e) => e.texels.capacity() * 12 + distribution2d_bytes(&e.distribution),
             })

@@ -30,7 +30,7 @@ use glam::{Vec2, Vec3};
 
 use crate::accel::Accel;
 use crate::camera::Camera;
-use crate::geometry::{Aabb, Ray, SurfaceInteraction, TriangleMesh};
+use crate::geometry::{Aabb, Hit, Ray, SurfaceInteraction, TriangleMesh};
 use crate::light::{Light, LightSampler};
 use crate::material::{Bsdf, SurfaceMaterial};
 
@@ -81,8 +81,34 @@ impl Scene {
     /// see `mask`).
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
+        let hit = self.hit(ray)?;
+        self.interaction(ray, &hit)
+    }
+    /// The accelerator's closest hit along `ray`, with the load of its triangle's indices started
+    /// (`TriangleMesh::prefetch_indices`): [`Self::intersect`] in two halves, so that a caller can
+    /// do work that does not need the hit (drawing the vertex's uniforms) before
+    /// [`Self::interaction`] reads the triangle. In a masked scene the hit may be a masked-out
+    /// surface; `interaction` resolves it.
+    #[inline]
+    pub fn hit(&self, ray: &Ray) -> Option<Hit> {
         let hit = self.accel.intersect(ray)?;
-        let si = SurfaceInteraction::from_hit(&self.meshes[hit.geom_id as usize], &hit);
+        if let Some(mesh) = self.meshes.get(hit.geom_id as usize) {
+            mesh.prefetch_indices(hit.prim_id);
+        }
+        Some(hit)
+    }
+    /// Starts loading the vertex data of `hit`'s triangle (a hint, as `Scene::hit`'s).
+    #[inline]
+    pub fn prefetch_vertices(&self, hit: &Hit) {
+        if let Some(mesh) = self.meshes.get(hit.geom_id as usize) {
+            mesh.prefetch_vertices(hit.prim_id);
+        }
+    }
+    /// The surface interaction of `hit`, the accelerator's closest hit along `ray`: the first
+    /// surface that stops `ray` (masked surfaces let it pass where their mask says).
+    #[inline]
+    pub fn interaction(&self, ray: &Ray, hit: &Hit) -> Option<SurfaceInteraction> {
+        let si = SurfaceInteraction::from_hit(&self.meshes[hit.geom_id as usize], hit);
         if !self.masked {
             return Some(si);
         }
