@@ -72,10 +72,7 @@ impl<'a> PixelSampler<'a> {
     pub fn stream(&mut self, k: u32) -> SampleStream<'_> {
         match self.kind {
             SamplerKind::Independent => SampleStream::Independent(self.rng),
-            SamplerKind::Sobol => SampleStream::Sobol(SobolStream::new(
-                splitmix64(self.key ^ ((k as u64 + 1) << 48) ^ (self.index >> 16)),
-                (self.index & 0xFFFF) as u32,
-            )),
+            SamplerKind::Sobol => SampleStream::Sobol(SobolStream::of_sequence(self.key, k, self.index)),
         }
     }
 }
@@ -121,6 +118,13 @@ pub struct SobolStream {
 }
 
 impl SobolStream {
+    /// Stream `k` of point `index` of the padded sequence keyed by `key` (a pixel's, or the MLT
+    /// bootstrap's over the whole film): streams are keyed apart, and points 2^16·j onwards come
+    /// from a further scramble keyed by j (module docs).
+    pub fn of_sequence(key: u64, k: u32, index: u64) -> SobolStream {
+        SobolStream::new(splitmix64(key ^ ((k as u64 + 1) << 48) ^ (index >> 16)), (index & 0xFFFF) as u32)
+    }
+
     /// `index` < 2^16.
     pub fn new(key: u64, index: u32) -> SobolStream {
         debug_assert!(index < 1 << 16);

@@ -64,21 +64,59 @@ pub fn run_bootstrap<S: Send + Sync>(
     init_slot: impl Fn(usize) -> S,
     sample: impl Fn(usize, u64, &mut S, &mut Counters) -> f32 + Sync,
 ) -> BootstrapRun {
+    run_batches(driver, progress, depths, 1, requested, time_budget, init_slot, |d, i, state, counters, out| {
+        out.push(sample(d, i, state, counters))
+    })
+}
+
+/// A bootstrap whose every sample feeds all `depths` slots at once (MMLT and RJMLT: one full BDPT
+/// sample gives every depth's b_d its estimate, see `pss::mlt`): up to `requested` samples, each
+/// pushing one target per slot (slot order) through `sample(i, state, counters, out)`. The time
+/// budget and determinism are `run_bootstrap`'s; `paths` is the number of samples, each counted
+/// once in every slot.
+pub fn run_shared_bootstrap<S: Send + Sync>(
+    driver: &Driver,
+    progress: &dyn Progress,
+    depths: usize,
+    requested: u64,
+    time_budget: Option<f64>,
+    init_slot: impl Fn(usize) -> S,
+    sample: impl Fn(u64, &mut S, &mut Counters, &mut Vec<f32>) + Sync,
+) -> BootstrapRun {
+    run_batches(driver, progress, 1, depths, requested, time_budget, init_slot, |_, i, state, counters, out| {
+        sample(i, state, counters, out)
+    })
+}
+
+/// The bootstrap's batches over `keys` independent sample sequences of up to `requested` samples,
+/// each sample pushing `width` targets: the result has `keys · width` slots (key-major).
+#[allow(clippy::too_many_arguments)]
+fn run_batches<S: Send + Sync>(
+    driver: &Driver,
+    progress: &dyn Progress,
+    keys: usize,
+    width: usize,
+    requested: u64,
+    time_budget: Option<f64>,
+    init_slot: impl Fn(usize) -> S,
+    sample: impl Fn(usize, u64, &mut S, &mut Counters, &mut Vec<f32>) + Sync,
+) -> BootstrapRun {
     progress.message("bootstrap");
-    let batches_per_depth = requested.div_ceil(BATCH);
+    let batches_per_key = requested.div_ceil(BATCH);
     let run_batches = |rounds: std::ops::Range<u64>| {
         let batches: Vec<(usize, u64, Vec<f32>)> =
-            (0..depths).flat_map(|d| rounds.clone().map(move |b| (d, b, Vec::new()))).collect();
+            (0..keys).flat_map(|k| rounds.clone().map(move |b| (k, b, Vec::new()))).collect();
         driver.run(
             batches,
             Passes::Count(1),
             progress,
             &init_slot,
-            |_, (d, b, targets), slot| {
+            |_, (k, b, targets), slot| {
                 let start = *b * BATCH;
                 let end = (start + BATCH).min(requested);
+                targets.reserve((end - start) as usize * width);
                 for i in start..end {
-                    targets.push(sample(*d, i, &mut slot.state, &mut slot.counters));
+                    sample(*k, i, &mut slot.state, &mut slot.counters, targets);
                 }
                 0
             },
@@ -90,18 +128,21 @@ pub fn run_bootstrap<S: Send + Sync>(
         Some(s) => {
             let round = first.elapsed.as_secs_f64().max(1e-6);
             let affordable = ((BOOTSTRAP_SHARE * s - round) / round).floor().max(0.0) as u64;
-            batches_per_depth.min(1 + affordable)
+            batches_per_key.min(1 + affordable)
         }
-        None => batches_per_depth,
+        None => batches_per_key,
     };
     let rest = run_batches(1..rounds);
     let paths = requested.min(rounds * BATCH);
     let mut counters = first.counters;
     counters.merge(&rest.counters);
     let elapsed = first.elapsed + rest.elapsed;
-    let mut targets: Vec<Vec<f32>> = vec![Vec::with_capacity(paths as usize); depths];
-    for (d, _, t) in first.units.into_iter().chain(rest.units) {
-        targets[d].extend(t);
+    let mut targets: Vec<Vec<f32>> = vec![Vec::with_capacity(paths as usize); keys * width];
+    for (k, _, t) in first.units.into_iter().chain(rest.units) {
+        assert_eq!(t.len() % width, 0, "a bootstrap sample pushed other than {width} targets");
+        for (j, &x) in t.iter().enumerate() {
+            targets[k * width + j % width].push(x);
+        }
     }
     let sums = targets.iter().map(|t| t.iter().map(|&x| x as f64).sum()).collect();
     let sums_sq = targets.iter().map(|t| t.iter().map(|&x| x as f64 * x as f64).sum()).collect();

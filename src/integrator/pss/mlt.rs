@@ -71,8 +71,10 @@ use crate::sampling::Rng;
 use crate::spectrum::{is_finite, luminance, Rgb};
 use crate::stats::{AcceptanceCount, Counters};
 
+mod bootstrap_sample;
 mod depth_choice;
 mod render;
+use bootstrap_sample::{technique_target, PrimarySource};
 use depth_choice::LargeStepTotals;
 
 /// Primary-sample streams: camera subpath, light subpath, connection, technique (MMLT's u_t).
@@ -203,21 +205,14 @@ impl Mlt {
         }
     }
 
-    /// The bootstrap sampler for sample `i` of depth slot `d`: a fresh chain whose first (large)
-    /// step reproduces the bootstrap path, so a chain can restart from it exactly.
-    fn bootstrap_sampler(&self, seed: u64, d: usize, i: u64) -> PssSampler {
-        let stream = d as u64 * self.settings.bootstrap + i;
-        PssSampler::new(Rng::new(seed ^ BOOTSTRAP_SEED_SALT, stream), self.mutation(), STREAM_COUNT)
-    }
-
     /// Maps the sampler's current proposal to its contributions (the state's path). `technique`
     /// fixes the number of light vertices (RJMLT's small steps and jumps); otherwise MMLT and
     /// RJMLT read it from the technique stream.
-    fn evaluate(
+    fn evaluate<P: PrimarySource>(
         &self,
         ctx: &BdptContext,
         d: usize,
-        sampler: &mut PssSampler,
+        sampler: &mut P,
         technique: Option<usize>,
         slot: &mut SlotState,
         counters: &mut Counters,
@@ -296,15 +291,12 @@ impl Mlt {
                         counters,
                         if rjmlt { Some(&mut state.weights) } else { None },
                     ) {
-                        let value = c.weighted();
-                        if is_finite(value) {
-                            state.splats.push(Splat { raster: c.raster, value });
+                        if technique_target(&c, counters) > 0.0 {
+                            state.splats.push(Splat { raster: c.raster, value: c.weighted() });
                             if rjmlt {
                                 state.path = full_path(&slot.light, &slot.camera, &c);
                                 state.unweighted = luminance(c.contribution);
                             }
-                        } else {
-                            counters.nonfinite_dropped += 1;
                         }
                     }
                 }

@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use super::sampler::SmallStep;
 use crate::integrator::bdpt::MisHeuristic;
 use crate::integrator::{settings_from_table, RenderError};
+use crate::sampling::SamplerKind;
 
 /// Which of the three methods.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,8 +52,14 @@ pub const MAX_CHAINS: u64 = 1 << 24;
 pub struct MltSettings {
     /// Maximum number of scattering events of a path (the paper's L = 8).
     pub max_depth: u32,
-    /// Uniform samples per path depth used to estimate b_d (the paper's N; 100,000).
+    /// Bootstrap samples used to estimate b_d (the paper's N; 100,000). PSSMLT: uniform samples of
+    /// its state. MMLT and RJMLT: full BDPT samples, each giving every depth's b_d an estimate
+    /// (`pss::mlt::bootstrap_sample`), so N per depth for all depths at once.
     pub bootstrap: u64,
+    /// The numbers of the bootstrap's samples: "sobol" (default: one Owen-scrambled Sobol sequence
+    /// over the film, lower b_d error at equal samples) or "independent". The chains' large steps
+    /// are independent proposals either way.
+    pub bootstrap_sampler: SamplerKind,
     /// Number of independent chains (each holds one sub-chain per depth for MMLT).
     pub chains: u64,
     /// Probability of a large step (Kelemen's p_large; 0.3; RJMLT 0.1).
@@ -175,6 +182,7 @@ impl Default for MltSettings {
         MltSettings {
             max_depth: 8,
             bootstrap: 100_000,
+            bootstrap_sampler: SamplerKind::Sobol,
             chains: 1000,
             large_step_probability: 0.3,
             jump_probability: 0.0,

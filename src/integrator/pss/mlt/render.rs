@@ -15,7 +15,7 @@ use crate::integrator::driver::{
     boundary_counters, load_units, merge_chain_parts, merge_slot_states, save_units, state_film, ChainPart,
     ChainSession, CheckpointHook, Driver, PassBoundary, PassSet, RunStart, Slot, Tally,
 };
-use crate::integrator::pss::bootstrap::{relative_standard_error, run_bootstrap};
+use crate::integrator::pss::bootstrap::{relative_standard_error, run_shared_bootstrap};
 use crate::integrator::pss::sampler::PssSampler;
 use crate::integrator::pss::stats::{MltStats, MoveStats};
 use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
@@ -285,18 +285,14 @@ impl Mlt {
             Budget::Seconds(s) if !same_everywhere => Some(s),
             _ => None,
         };
-        let boot = run_bootstrap(
+        let boot = run_shared_bootstrap(
             driver,
             progress,
             depths,
             self.settings.bootstrap,
             time_budget,
             |_| self.new_slot(0, 0),
-            |d, i, slot, counters| {
-                let mut sampler = self.bootstrap_sampler(job.seed, d, i);
-                sampler.start_iteration_with(true);
-                self.evaluate(ctx, d, &mut sampler, None, slot, counters).target
-            },
+            |i, slot, counters, out| self.bootstrap_sample(ctx, job.seed, i, slot, counters, out),
         );
         let n_boot = boot.paths;
         let counters = boot.counters;
@@ -355,12 +351,10 @@ impl Mlt {
                     return self.settings.progressive_b.then(|| SubChain { sampler, current: PathState::default() });
                 };
                 let (i, _, _) = dist.sample_discrete(rng.uniform());
-                let mut sampler = self.bootstrap_sampler(seed, d, i as u64);
-                sampler.start_iteration_with(true);
-                let current = self.evaluate(ctx, d, &mut sampler, None, init_slot, counters);
-                sampler.accept();
-                sampler.reseed(own_stream);
-                Some(SubChain { sampler, current })
+                let (u_technique, u_within) = (rng.uniform(), rng.uniform());
+                let (chain, _) =
+                    self.start_state(ctx, seed, d, i as u64, u_technique, u_within, own_stream, init_slot, counters);
+                Some(chain)
             })
             .collect();
         ChainUnit { index: c, rng, large_steps: vec![(0.0, 0); depths], subchains }
