@@ -12,7 +12,8 @@
 # Environment (defaults in brackets):
 #   PLEXUS   binary                      [$CARGO_TARGET_DIR/release/plexus, else target/release/plexus]
 #   MPP      mutations per pixel (--spp of the chain integrators: mpp × pixels mutations in all)  [64]
-#   SEEDS    seeds 0 .. SEEDS-1          [5]
+#   SEEDS    seeds FIRST_SEED .. FIRST_SEED+SEEDS-1 [5]
+#   FIRST_SEED  the first seed (a run's seeds can be split over processes this way)   [0]
 #   THREADS  render threads              [2]
 #   METHODS  compared integrators        [emlt pmlt]; an entry NAME:KEY=VALUE,KEY=VALUE runs NAME
 #            with those settings (--set) under the entry's own label, e.g. emlt:ensemble_size=1024
@@ -59,6 +60,7 @@ elif [[ -n ${1:-} ]]; then
 fi
 mpp=${MPP:-64}
 seeds=${SEEDS:-5}
+first_seed=${FIRST_SEED:-0}
 threads=${THREADS:-2}
 read -r -a methods <<< "${METHODS:-emlt pmlt}"
 read -r -a scenes <<< "${SCENES:-cornell-box veach-ajar}"
@@ -137,7 +139,7 @@ if [[ $equal_time != only ]]; then
     count=${#methods[@]}
     for scene in "${scenes[@]}"; do
         scene_setup "$scene"
-        for seed in $(seq 0 $((seeds - 1))); do
+        for seed in $(seq "$first_seed" $((first_seed + seeds - 1))); do
             for i in $(seq 0 $((count - 1))); do
                 method=${methods[$(((i + seed) % count))]}
                 render_one "$scene" "$seed" "$method" "$mpp" "$method"
@@ -160,7 +162,7 @@ print(max(1, round(mpp * cpu(target) / cpu("pmlt"))))
 PY
 )
         echo "$scene: pmlt at $time_mpp mutations per pixel costs what $equal_time_to costs at $mpp" >&2
-        for seed in $(seq 0 $((seeds - 1))); do
+        for seed in $(seq "$first_seed" $((first_seed + seeds - 1))); do
             render_one "$scene" "$seed" pmlt "$time_mpp" "pmlt@time"
         done
     done
