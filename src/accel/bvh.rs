@@ -631,9 +631,11 @@ mod tests {
                     leaves += 1;
                     assert!(count as usize <= BuildParams::default().max_leaf);
                     let count = count as usize;
-                    for packet in child..child + count.div_ceil(PACKET) {
-                        assert!(!packets_seen[packet], "packet {packet} in two leaves");
-                        packets_seen[packet] = true;
+                    assert!(child + count.div_ceil(PACKET) <= bvh.packets.len(), "leaf past the packets");
+                    let leaf_packets = packets_seen.iter_mut().enumerate().skip(child).take(count.div_ceil(PACKET));
+                    for (packet, packet_seen) in leaf_packets {
+                        assert!(!*packet_seen, "packet {packet} in two leaves");
+                        *packet_seen = true;
                         for lane in 0..PACKET {
                             let [g, p] = bvh.ids[PACKET * packet + lane];
                             if PACKET * (packet - child) + lane >= count {
