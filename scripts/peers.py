@@ -225,6 +225,7 @@ def main():
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--renders", type=int, default=8)
     ap.add_argument("--depth", type=int, default=16, help="plexus max_depth (bounces); Mitsuba gets one more")
+    ap.add_argument("--first-seed", type=int, default=1, help="seeds are first-seed, first-seed + 1, ...")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--variant", default="llvm_ad_rgb")
     ap.add_argument("--write", metavar="FILE", help="also write the table into FILE between its markers "
@@ -236,7 +237,7 @@ def main():
     mi.set_variant(args.variant)
     if args.variant.startswith("llvm"):
         dr.set_thread_count(args.threads)
-    seeds = [1 + k for k in range(args.renders)]
+    seeds = [args.first_seed + k for k in range(args.renders)]
     scenes = variants(cc)
     unknown = [n for n in args.scenes.split(",") if n not in scenes]
     if unknown:
@@ -258,7 +259,7 @@ def main():
         print("\n".join(table([(name, rows)], args).split("\n")[2:]), file=sys.stderr, flush=True)
     text = table(rows_by_scene, args)
     text += (f"\n\n{started}, `scripts/peers.sh --spp {args.spp} --renders {args.renders} --depth {args.depth} "
-             f"--threads {args.threads}`; load average {load_before:.1f} before, {load_average():.1f} after; "
+             f"--threads {args.threads} --first-seed {args.first_seed}`; load average {load_before:.1f} before, {load_average():.1f} after; "
              f"mitsuba {mi.__version__}; times are medians of {args.renders} renders; '± x%' is the ratio's relative error from the variances' standard errors alone.")
     print(text)
     if args.write:
