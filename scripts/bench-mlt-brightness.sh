@@ -6,41 +6,54 @@
 # its relative standard error (integrator_stats.per_depth[].b_bootstrap_relative_se), as Markdown.
 #
 # Usage: scripts/bench-mlt-brightness.sh [SEEDS] [METHODS]     (defaults 20, "mmlt rjmlt")
-# Environment: PLEXUS (binary), SPP [64], THREADS [2], OUTDIR [/tmp/bench-mlt-brightness].
+# Environment: PLEXUS (binary), SPP [64], THREADS [2], OUTDIR [/tmp/bench-mlt-brightness], SET [none].
 set -euo pipefail
 seeds=${1:-20}
 methods=${2:-mmlt rjmlt}
 spp=${SPP:-64}
 threads=${THREADS:-2}
 outdir=${OUTDIR:-/tmp/bench-mlt-brightness}
+# SET: further integrator settings, space-separated KEY=VALUE (e.g. SET="progressive_b=false").
+extra=()
+for kv in ${SET:-}; do
+    extra+=(--set "$kv")
+done
 source "$(dirname "$0")/plexus-binary.sh"
 plexus_binary bench-mlt-brightness scenes/cornell-box.toml
 mkdir -p "$outdir"
-for method in $methods; do
-    for seed in $(seq 1 "$seeds"); do
+# Seeds outer, methods inner: a load change hits both methods alike, and a partial run covers both.
+echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)" >&2
+for seed in $(seq 1 "$seeds"); do
+    for method in $methods; do
         "$plexus" render scenes/cornell-box.toml --integrator "$method" --spp "$spp" --threads "$threads" \
-            --seed "$seed" --set max_depth=16 -o "$outdir/$method-$seed.exr" >/dev/null 2>&1
+            --seed "$seed" --set max_depth=16 "${extra[@]}" -o "$outdir/$method-$seed.exr" >/dev/null 2>&1
     done
 done
+echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)" >&2
 python3 - "$outdir" "$seeds" $methods <<'EOF'
 import json, math, statistics, sys
 outdir, seeds, methods = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
-print("| method | seeds | image mean (mean over seeds) | relative SD of the image mean | bootstrap s | mutations/s |")
-print("| --- | --- | --- | --- | --- | --- |")
+print("| method | seeds | image mean (mean over seeds) | relative SD of the image mean | relative SD of the bootstrap's Σ n_d b_d | bootstrap s | mutations/s | wall s |")
+print("| --- | --- | --- | --- | --- | --- | --- | --- |")
 per_depth = {}
 for m in methods:
-    means, boot, rate = [], [], []
+    means, boot, rate, wall, boot_total = [], [], [], [], []
     for s in range(1, seeds + 1):
         j = json.load(open(f"{outdir}/{m}-{s}.json"))
         means.append(sum(j["image_mean"]) / 3)
         st = j["integrator_stats"]
         boot.append(st["bootstrap_seconds"])
         rate.append(st["mutations"] / j["wall_time_s"])
+        wall.append(j["wall_time_s"])
+        pd = st["per_depth"]
+        boot_total.append(sum((1 if d["depth"] == 0 else d["depth"] + 2) * d["b_bootstrap"] for d in pd))
         if s == 1:
             per_depth[m] = st["per_depth"]
     mu = statistics.mean(means)
+    bt = statistics.mean(boot_total)
     print(f"| {m} | {seeds} | {mu:.5g} | {100 * statistics.stdev(means) / mu:.3f}% | "
-          f"{statistics.median(boot):.2f} | {statistics.median(rate):.3g} |")
+          f"{100 * statistics.stdev(boot_total) / bt:.3f}% | {statistics.median(boot):.2f} | "
+          f"{statistics.median(rate):.3g} | {statistics.median(wall):.1f} |")
 for m, depths in per_depth.items():
     total = sum(d["b_bootstrap"] for d in depths) or 1.0
     print(f"\n{m}, seed 1: per depth b_d (bootstrap), its share of Σb, its relative standard error\n")

@@ -309,6 +309,10 @@ pub struct MltStats {
     pub segment_length: u64,
     pub bootstrap_paths_per_depth: u64,
     pub bootstrap_seconds: f64,
+    /// MMLT, RJMLT: the relative standard error of the bootstrap's Σ_d n_d·b_d (the image's
+    /// luminance when b is the bootstrap's), from its samples' spread; null for PSSMLT, path-space
+    /// MLT, and a bootstrap without light.
+    pub b_bootstrap_total_relative_se: Option<f64>,
     /// Derived by `finish`, over all proposals: acceptance, effective path ratio (non-zero
     /// technique paths / evaluated; see `MoveStats`), share of proposals with a non-zero target,
     /// and technique paths evaluated.

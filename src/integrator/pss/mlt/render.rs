@@ -32,6 +32,9 @@ struct BootstrapPart {
     sums: Vec<f64>,
     /// Per depth the sum of the squared targets (b_d's standard error in the statistics).
     sums_sq: Vec<f64>,
+    /// The sum of the squares of the samples' Σ_d n_d·B_d (MMLT, RJMLT: the standard error of the
+    /// bootstrap's image brightness; 0 for PSSMLT).
+    total_sum_sq: f64,
     paths: u64,
     /// Wall time (0 in shards, whose bytes depend on their units only).
     seconds: f64,
@@ -300,6 +303,17 @@ impl Mlt {
         let targets = boot.targets;
         let sums = boot.sums;
         let sums_sq = boot.sums_sq;
+        // Per sample Σ_d n_d·B_d, the sample's BDPT estimate of the image's luminance.
+        let total_sum_sq = if depths > 1 {
+            (0..n_boot as usize)
+                .map(|i| {
+                    let total: f64 = (0..depths).map(|d| self.technique_count(d) as f64 * targets[d][i] as f64).sum();
+                    total * total
+                })
+                .sum()
+        } else {
+            0.0
+        };
         let b_total: f64 = sums.iter().map(|s| s / n_boot as f64).sum();
         let mut warnings: Vec<String> = Vec::new();
         if !(b_total > 0.0) {
@@ -308,7 +322,11 @@ impl Mlt {
                  emitters are visible from the camera's surroundings, or raise `bootstrap`.",
                 n_boot
             ));
-            return Ok((BootstrapPart { sums, sums_sq, paths: n_boot, seconds, warnings }, counters, None));
+            return Ok((
+                BootstrapPart { sums, sums_sq, total_sum_sq, paths: n_boot, seconds, warnings },
+                counters,
+                None,
+            ));
         }
         // Without progressive b a depth's b_d stays the bootstrap's, so a depth it missed cannot
         // be recovered and is not chosen (`depth_choice`); a warning says so.
@@ -323,7 +341,7 @@ impl Mlt {
             }
         }
         let dists = targets.iter().zip(&sums).map(|(t, &s)| (s > 0.0).then(|| Distribution1D::new(t))).collect();
-        Ok((BootstrapPart { sums, sums_sq, paths: n_boot, seconds, warnings }, counters, Some(dists)))
+        Ok((BootstrapPart { sums, sums_sq, total_sum_sq, paths: n_boot, seconds, warnings }, counters, Some(dists)))
     }
 
     /// Chain `c`: each sub-chain starts from a bootstrap sample chosen ∝ its target (start-up bias
@@ -416,6 +434,10 @@ impl Mlt {
         stats.finish(pixels, &b_boot, &b_final);
         for (depth, (&sum, &sum_sq)) in stats.per_depth.iter_mut().zip(boot.sums.iter().zip(&boot.sums_sq)) {
             depth.b_bootstrap_relative_se = relative_standard_error(sum, sum_sq, boot.paths);
+        }
+        if self.depth_count() > 1 {
+            let total: f64 = boot.sums.iter().enumerate().map(|(d, s)| self.technique_count(d) as f64 * s).sum();
+            stats.b_bootstrap_total_relative_se = relative_standard_error(total, boot.total_sum_sq, boot.paths);
         }
         let mut counters = tally.counters;
         let strategy = |m: &MoveStats| AcceptanceCount { proposed: m.proposals, accepted: m.accepted as f64 };
