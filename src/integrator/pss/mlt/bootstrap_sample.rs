@@ -348,11 +348,11 @@ mod tests {
                     let ctx = BdptContext::new(&scene, usize::MAX, mlt.settings.mis);
                     let mut slot = mlt.new_slot(0, 0);
                     let mut counters = Counters::default();
-                    let depths = mlt.depth_count();
                     for index in 0..60u64 {
                         let mut b = Vec::new();
                         mlt.bootstrap_sample(&ctx, 7, index, &mut slot, &mut counters, &mut b);
-                        for d in 0..depths {
+                        assert_eq!(b.len(), mlt.depth_count());
+                        for (d, &b_d) in b.iter().enumerate() {
                             let n = mlt.technique_count(d);
                             // The depth's techniques from subpaths generated for depth d only.
                             let mut targets = vec![0.0f32; n];
@@ -362,9 +362,8 @@ mod tests {
                             });
                             let mean = targets.iter().map(|&w| w as f64).sum::<f64>() / n as f64;
                             assert!(
-                                (mean - b[d] as f64).abs() <= 1e-6 * mean.max(1e-30),
-                                "{name} {variant:?} sample {index} depth {d}: B_d {} vs the techniques' mean {mean}",
-                                b[d]
+                                (mean - b_d as f64).abs() <= 1e-6 * mean.max(1e-30),
+                                "{name} {variant:?} sample {index} depth {d}: B_d {b_d} vs the techniques' mean {mean}"
                             );
                             let total: f32 = targets.iter().sum();
                             let mut before = 0.0f32;
