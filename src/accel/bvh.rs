@@ -1,6 +1,6 @@
-//! The in-house BVH: a 4-wide hierarchy built directly by binned SAH (see `build`), whose nodes
-//! hold their four children's boxes in SIMD-friendly rows so that one node visit tests all four
-//! (`triangle::slab4`), an ordered stack traversal (nearest child first, entries farther than the current
+//! The in-house BVH: an 8-wide hierarchy built directly by binned SAH (see `build`), whose nodes
+//! hold their eight children's boxes in SIMD-friendly rows so that one node visit tests all eight
+//! (`triangle::slab8`, one AVX pass where the CPU has AVX2, chosen at run time), an ordered stack traversal (nearest child first, entries farther than the current
 //! hit skipped when popped), and leaves of packets of four triangles tested at once by the
 //! watertight ray–triangle test of Woop et al. 2013 (see `triangle`). Answers the same queries as
 //! Embree behind [`Accel`], with the same hit convention.
@@ -15,7 +15,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 pub use build::BuildParams;
-use build::{BuildPrim, Node, EMPTY, MAX_DEPTH, PACKET};
+use build::{BuildPrim, Node, EMPTY, MAX_DEPTH, PACKET, WIDTH};
 use triangle::{intersect4_k, Tri4};
 pub use triangle::{intersect_triangle, RayPre};
 
@@ -41,11 +41,15 @@ pub struct Bvh {
     triangle_count: usize,
     /// The most bytes the build held at once (see `build_with`).
     build_peak: usize,
+    /// Whether queries run the AVX2 code (`closest_avx2`, `any_avx2`): set where the CPU has AVX2
+    /// and FMA (`is_x86_feature_detected!`; the build targets baseline x86-64), which is what makes
+    /// calling those functions sound. The tests also clear it to check the baseline code.
+    avx2: bool,
 }
 
-/// Enough for any traversal: a node visit pushes at most three entries and descends one level,
-/// and the tree is at most `MAX_DEPTH` levels deep.
-const STACK: usize = 3 * MAX_DEPTH + 4;
+/// Enough for any traversal: a node visit pushes at most `WIDTH - 1` entries and descends one
+/// level, and the tree is at most `MAX_DEPTH` levels deep.
+const STACK: usize = (WIDTH - 1) * MAX_DEPTH + WIDTH;
 
 /// A traversal stack entry: a node slot's `child | count << 32` (count 0 for an interior node).
 type Entry = u64;
@@ -97,7 +101,8 @@ impl Bvh {
                 packet
             })
             .collect();
-        let mut bvh = Bvh { meshes: meshes.to_vec(), nodes, packets, ids, triangle_count, build_peak: 0 };
+        let mut bvh =
+            Bvh { meshes: meshes.to_vec(), nodes, packets, ids, triangle_count, build_peak: 0, avx2: has_avx2() };
         bvh.build_peak = held.max(bvh.memory_bytes());
         bvh
     }
@@ -107,7 +112,7 @@ impl Bvh {
         &self.meshes
     }
 
-    /// Number of (4-wide) nodes.
+    /// Number of (8-wide) nodes.
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
@@ -123,8 +128,10 @@ impl Bvh {
     /// first, and popped entries whose box starts beyond the (scaled) current `t_max` are skipped:
     /// they cannot hold a nearer hit. Without it (occlusion, which stops at the first hit and never
     /// lowers `t_max`) they are visited in slot order, which spares the sort.
+    /// With `AVX2` the node test is `triangle::slab8_avx`: only instantiated inside the
+    /// `#[target_feature(enable = "avx2,fma")]` functions `closest_avx2` and `any_avx2`.
     #[inline(always)]
-    fn traverse<const NEAREST_FIRST: bool>(
+    fn traverse<const NEAREST_FIRST: bool, const AVX2: bool>(
         &self,
         ray: &Ray,
         pre: &RayPre,
@@ -148,10 +155,19 @@ impl Bvh {
                 // SAFETY: `child` is 0 (the tree is not empty) or an interior slot's child index,
                 // which the builder writes only below `nodes.len()` (`tree_invariants_hold`).
                 let node = unsafe { self.nodes.get_unchecked(child) };
-                let (mut mask, near) = triangle::slab4(pre, &node.bounds, t_min, t_max);
+                #[cfg(target_arch = "x86_64")]
+                let (mut mask, near) = if AVX2 {
+                    // SAFETY: `AVX2` traversals run only inside `closest_avx2` and `any_avx2`, which
+                    // are called only when `self.avx2`, i.e. the CPU has AVX2 and FMA.
+                    unsafe { triangle::slab8_avx(pre, &node.bounds, t_min, t_max) }
+                } else {
+                    triangle::slab8(pre, &node.bounds, t_min, t_max)
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let (mut mask, near) = triangle::slab8(pre, &node.bounds, t_min, t_max);
                 // Unused slots have empty boxes, which no ray overlaps; masked all the same, since
                 // following one would read past the arrays.
-                mask &= (0..4).fold(0, |m, k| m | ((node.count[k] != EMPTY) as u32) << k);
+                mask &= (0..WIDTH).fold(0, |m, k| m | ((node.count[k] != EMPTY) as u32) << k);
                 let entry = |slot: usize| (node.child[slot] as Entry | (node.count[slot] as Entry) << 32, near[slot]);
                 if !NEAREST_FIRST {
                     if mask == 0 {
@@ -167,7 +183,7 @@ impl Bvh {
                         continue 'visit;
                     }
                 } else {
-                    let mut hits = [(0 as Entry, 0f32); 4];
+                    let mut hits = [(0 as Entry, 0f32); WIDTH];
                     let mut k = 0;
                     while mask != 0 {
                         let e = entry(mask.trailing_zeros() as usize);
@@ -220,9 +236,9 @@ fn valid_interval(ray: &Ray) -> bool {
 impl Bvh {
     /// Closest hit for rays whose dominant axis is `KZ`.
     #[inline(always)]
-    fn closest<const KZ: usize>(&self, ray: &Ray, pre: &RayPre) -> Option<Hit> {
+    fn closest<const KZ: usize, const AVX2: bool>(&self, ray: &Ray, pre: &RayPre) -> Option<Hit> {
         let mut best: Option<(usize, f32, f32, f32)> = None;
-        self.traverse::<true>(ray, pre, |first, count, mut t_max| {
+        self.traverse::<true, AVX2>(ray, pre, |first, count, mut t_max| {
             for (k, packet) in (first..first + count.div_ceil(PACKET)).enumerate() {
                 debug_assert!(packet < self.packets.len());
                 // SAFETY: leaf packets lie within the packet array (checked by
@@ -245,9 +261,9 @@ impl Bvh {
 
     /// Whether anything is hit, for rays whose dominant axis is `KZ`.
     #[inline(always)]
-    fn any<const KZ: usize>(&self, ray: &Ray, pre: &RayPre) -> bool {
+    fn any<const KZ: usize, const AVX2: bool>(&self, ray: &Ray, pre: &RayPre) -> bool {
         let mut hit = false;
-        self.traverse::<false>(ray, pre, |first, count, t_max| {
+        self.traverse::<false, AVX2>(ray, pre, |first, count, t_max| {
             hit = (first..first + count.div_ceil(PACKET)).enumerate().any(|(k, packet)| {
                 debug_assert!(packet < self.packets.len());
                 // SAFETY: as in `closest`.
@@ -290,7 +306,7 @@ fn packet_ids(nodes: &mut [Node], prims: &[BuildPrim]) -> Vec<[u32; 2]> {
         nodes.iter().flat_map(|n| n.count).filter(|&c| is_leaf(c)).map(|c| (c as usize).div_ceil(PACKET)).sum();
     let mut ids = Vec::with_capacity(total * PACKET);
     for node in nodes.iter_mut() {
-        for k in 0..4 {
+        for k in 0..WIDTH {
             let (start, count) = (node.child[k] as usize, node.count[k]);
             if is_leaf(count) {
                 node.child[k] = (ids.len() / PACKET) as u32;
@@ -303,17 +319,64 @@ fn packet_ids(nodes: &mut [Node], prims: &[BuildPrim]) -> Vec<[u32; 2]> {
     ids
 }
 
+impl Bvh {
+    /// Closest hit, the traversal instantiated for the ray's dominant axis.
+    #[inline(always)]
+    fn closest_any_axis<const AVX2: bool>(&self, ray: &Ray, pre: &RayPre) -> Option<Hit> {
+        match pre.kz {
+            0 => self.closest::<0, AVX2>(ray, pre),
+            1 => self.closest::<1, AVX2>(ray, pre),
+            _ => self.closest::<2, AVX2>(ray, pre),
+        }
+    }
+
+    /// Occlusion, the traversal instantiated for the ray's dominant axis.
+    #[inline(always)]
+    fn any_any_axis<const AVX2: bool>(&self, ray: &Ray, pre: &RayPre) -> bool {
+        match pre.kz {
+            0 => self.any::<0, AVX2>(ray, pre),
+            1 => self.any::<1, AVX2>(ray, pre),
+            _ => self.any::<2, AVX2>(ray, pre),
+        }
+    }
+
+    /// The closest-hit query compiled for AVX2 and FMA: the node test in one AVX pass, and the
+    /// rest (triangle packets, stack) in VEX-encoded SSE. No FMA is formed: Rust does not contract
+    /// `a * b + c`, so every result is the baseline code's bit for bit (the tests compare both).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn closest_avx2(&self, ray: &Ray, pre: &RayPre) -> Option<Hit> {
+        self.closest_any_axis::<true>(ray, pre)
+    }
+
+    /// The occlusion query compiled for AVX2 and FMA (see `closest_avx2`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn any_avx2(&self, ray: &Ray, pre: &RayPre) -> bool {
+        self.any_any_axis::<true>(ray, pre)
+    }
+}
+
+/// Whether this CPU runs the AVX2 queries (`Bvh::avx2`).
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    return is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
+    #[cfg(not(target_arch = "x86_64"))]
+    return false;
+}
+
 impl Accel for Bvh {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         if !valid_interval(ray) {
             return None;
         }
         let pre = RayPre::new(ray)?;
-        match pre.kz {
-            0 => self.closest::<0>(ray, &pre),
-            1 => self.closest::<1>(ray, &pre),
-            _ => self.closest::<2>(ray, &pre),
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is set only when the CPU has AVX2 and FMA (`has_avx2`).
+            return unsafe { self.closest_avx2(ray, &pre) };
         }
+        self.closest_any_axis::<false>(ray, &pre)
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
@@ -323,11 +386,12 @@ impl Accel for Bvh {
         let Some(pre) = RayPre::new(ray) else {
             return false;
         };
-        match pre.kz {
-            0 => self.any::<0>(ray, &pre),
-            1 => self.any::<1>(ray, &pre),
-            _ => self.any::<2>(ray, &pre),
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `intersect`.
+            return unsafe { self.any_avx2(ray, &pre) };
         }
+        self.any_any_axis::<false>(ray, &pre)
     }
 
     fn kind(&self) -> AccelKind {
@@ -480,15 +544,15 @@ mod tests {
     }
 
     #[test]
-    fn node_is_two_cache_lines() {
-        assert_eq!(std::mem::size_of::<Node>(), 128);
+    fn node_is_four_cache_lines() {
+        assert_eq!(std::mem::size_of::<Node>(), 256);
         assert_eq!(std::mem::align_of::<Node>(), 64);
     }
 
     #[test]
     fn icosphere_is_watertight_at_vertices_and_edges() {
         let sphere = icosphere(4);
-        let bvh = Bvh::build(std::slice::from_ref(&sphere));
+        let mut bvh = Bvh::build(std::slice::from_ref(&sphere));
         let p = sphere.positions();
         let mut targets: Vec<Vec3> = p.to_vec();
         for [a, b, c] in sphere.indices() {
@@ -502,7 +566,9 @@ mod tests {
         // surface; from outside, every ray aimed at a surface point must hit.
         let origins = [Vec3::ZERO, Vec3::new(0.3, -0.2, 0.1), Vec3::new(-0.51, 0.37, -0.29)];
         let mut rays = 0;
-        for &target in &targets {
+        for (k, &target) in targets.iter().enumerate() {
+            // Every other target through the baseline (SSE) code, the rest through AVX2.
+            bvh.avx2 = k % 2 == 0 && has_avx2();
             for &o in &origins {
                 let ray = Ray::new(o, target - o);
                 assert!(bvh.intersect(&ray).is_some(), "slipped through from {o} towards {target}");
@@ -523,10 +589,12 @@ mod tests {
         // test (exact zeros of the edge functions) and for the slab test (origins on box planes
         // with zero direction components, i.e. 0·∞).
         let m = 8;
-        let bvh = Bvh::build(&[cube_grid(m)]);
+        let mut bvh = Bvh::build(&[cube_grid(m)]);
         let mf = m as f32;
         let mut rays = 0;
-        for axis in 0..3 {
+        for (axis, avx2) in (0..6).map(|k| (k % 3, k >= 3 && has_avx2())) {
+            // Each axis through the baseline (SSE) code, then through the AVX2 code.
+            bvh.avx2 = avx2;
             for i in 0..=2 * m {
                 for j in 0..=2 * m {
                     // Coordinates on the half-integer lattice: vertices, edge midpoints, centres.
@@ -555,7 +623,7 @@ mod tests {
                 }
             }
         }
-        assert_eq!(rays, 3 * 17 * 17 * 4);
+        assert_eq!(rays, 2 * 3 * 17 * 17 * 4);
     }
 
     #[test]
@@ -576,9 +644,12 @@ mod tests {
                 }
                 meshes.push(mesh(p, f));
             }
-            let bvh = Bvh::build(&meshes);
+            let mut bvh = Bvh::build(&meshes);
             let mut hits = 0;
             for r in 0..2000 {
+                // Every other ray through the baseline (SSE) code, the rest through the AVX2
+                // code where the CPU has it: both must agree with the brute force.
+                bvh.avx2 = r % 2 == 0 && has_avx2();
                 let o = random_point(&mut rng, -1.5, 1.5);
                 let d = random_point(&mut rng, -1.0, 1.0) - o;
                 let mut ray = Ray::new(o, d);
@@ -615,14 +686,14 @@ mod tests {
             visited[i] = true;
             max_depth = max_depth.max(depth);
             let n = bvh.nodes[i];
-            for k in 0..4 {
+            for k in 0..WIDTH {
                 let (child, count) = (n.child[k] as usize, n.count[k]);
                 let b = n.slot_bounds(k);
                 if count == EMPTY {
                     assert!(b.is_empty(), "an unused slot has an empty box");
                 } else if count == 0 {
                     let c = bvh.nodes[child];
-                    for j in (0..4).filter(|&j| c.count[j] != EMPTY) {
+                    for j in (0..WIDTH).filter(|&j| c.count[j] != EMPTY) {
                         let cb = c.slot_bounds(j);
                         assert!(cb.min.cmpge(b.min).all() && cb.max.cmple(b.max).all(), "child box outside slot");
                     }
@@ -658,9 +729,9 @@ mod tests {
         assert!(packets_seen.iter().all(|&s| s), "every packet in a leaf");
         assert!(visited.iter().all(|&v| v), "every node reachable");
         assert!(max_depth < 20, "depth {max_depth} (the bound is {MAX_DEPTH})");
-        // Every node but the root has 2 to 4 children, so there are fewer nodes than leaves.
+        // Every node but the root has 2 to 8 children, so there are fewer nodes than leaves.
         assert!(bvh.node_count() < leaves, "{} nodes for {leaves} leaves", bvh.node_count());
-        assert!(bvh.memory_bytes() >= bvh.node_count() * 128 + bvh.triangle_count() * 44);
+        assert!(bvh.memory_bytes() >= bvh.node_count() * 256 + bvh.triangle_count() * 44);
     }
 
     #[test]

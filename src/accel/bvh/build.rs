@@ -1,7 +1,7 @@
 //! Binned-SAH construction (Wald 2007, "On fast Construction of SAH-based Bounding Volume
-//! Hierarchies") of a 4-wide hierarchy, built directly as Embree's builders do: a node starts with
-//! its primitives as one child, and the child with the largest surface area is split by the binned
-//! SAH until the node has four children or none can be split; each child is then a leaf or the
+//! Hierarchies") of an 8-wide hierarchy (`WIDTH`), built directly as Embree's builders do: a node
+//! starts with its primitives as one child, and the child with the largest surface area is split by
+//! the binned SAH until the node has `WIDTH` children or none can be split; each child is then a leaf or the
 //! root of a subtree. Split candidates are the boundaries of `BINS` equal-width bins over the
 //! centroid bounds on each axis; the bins also carry their primitives' bounds, and the partition
 //! the centroid bounds of both halves, so the two halves of a split know their extents without
@@ -41,30 +41,35 @@ impl BuildPrim {
 /// `Node::count` of a slot that holds nothing (its box is empty, so no ray enters it either).
 pub(super) const EMPTY: u32 = u32::MAX;
 
-/// A 4-wide node: 128 bytes, two cache lines, laid out for testing the four boxes at once.
-/// `bounds` holds min x, min y, min z, max x, max y, max z, each for the four slots. A slot with
+/// Children per node. Eight, as Embree's BVH8: one AVX visit tests all eight boxes
+/// (`triangle::slab8`), and the tree is about half as deep as a 4-wide one, so a ray makes about
+/// half the dependent node loads (measured against 4-wide in docs/bench.md, session 10).
+pub(super) const WIDTH: usize = 8;
+
+/// An 8-wide node: 256 bytes, four cache lines, laid out for testing the eight boxes at once.
+/// `bounds` holds min x, min y, min z, max x, max y, max z, each for the eight slots. A slot with
 /// `count == 0` is an interior child (node index in `child`); with `count == EMPTY` it is unused;
 /// otherwise a leaf of `count` triangles starting at `child` in the leaf-ordered triangle arrays.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 pub(super) struct Node {
-    pub bounds: [[f32; 4]; 6],
-    pub child: [u32; 4],
-    pub count: [u32; 4],
+    pub bounds: [[f32; WIDTH]; 6],
+    pub child: [u32; WIDTH],
+    pub count: [u32; WIDTH],
 }
 
 impl Node {
     const UNUSED: Node = Node {
         bounds: [
-            [f32::INFINITY; 4],
-            [f32::INFINITY; 4],
-            [f32::INFINITY; 4],
-            [f32::NEG_INFINITY; 4],
-            [f32::NEG_INFINITY; 4],
-            [f32::NEG_INFINITY; 4],
+            [f32::INFINITY; WIDTH],
+            [f32::INFINITY; WIDTH],
+            [f32::INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
         ],
-        child: [0; 4],
-        count: [EMPTY; 4],
+        child: [0; WIDTH],
+        count: [EMPTY; WIDTH],
     };
 
     fn set(&mut self, slot: usize, b: &Aabb, child: u32, count: u32) {
@@ -119,7 +124,7 @@ const PARALLEL_PRIMS: usize = 4096;
 const CHUNK: usize = 16 * 1024;
 /// Below this many binary splits from the root the SAH decides; deeper, splits are forced to the
 /// object median so that the depth stays below `MAX_DEPTH` (a median split halves the count: ≤ 32
-/// more levels for < 2^32 primitives), which bounds the traversal stack. Every level of the 4-wide
+/// more levels for < 2^32 primitives), which bounds the traversal stack. Every level of the wide
 /// tree is at least one binary split, so its depth is bounded by `MAX_DEPTH` too.
 const SAH_DEPTH: usize = 64;
 /// Bound on the tree depth (root at depth 0), hence on the traversal stack.
@@ -439,8 +444,8 @@ fn build_node(
     out: &mut Vec<Node>,
     params: &BuildParams,
 ) -> u32 {
-    // Split the largest open child until there are four (Embree's wide-BVH builders do the same).
-    while children.len() < 4 {
+    // Split the largest open child until there are `WIDTH` (Embree's wide-BVH builders do the same).
+    while children.len() < WIDTH {
         let open = children
             .iter()
             .enumerate()
@@ -464,7 +469,7 @@ fn build_node(
     }
     let me = out.len();
     out.push(Node::UNUSED);
-    let mut slots = [(0u32, 0u32); 4];
+    let mut slots = [(0u32, 0u32); WIDTH];
     if prims.len() > PARALLEL_PRIMS {
         // Disjoint slices, one per child, for the parallel subtrees.
         let mut rest = &mut *prims;

@@ -10,7 +10,7 @@ use crate::geometry::{gamma, Ray};
 #[derive(Clone, Copy, Debug)]
 pub struct RayPre {
     pub o: Vec3,
-    /// Component-wise `1 / d`; a zero component gives a signed infinity (wanted: see [`slab4`]).
+    /// Component-wise `1 / d`; a zero component gives a signed infinity (wanted: see [`slab4_rows`]).
     pub inv_d: Vec3,
     /// Whether each component of `d` is negative (sign bit, so `-0.0` counts as negative, which
     /// matches the sign of the infinity in `inv_d`).
@@ -337,21 +337,21 @@ fn plane_distance_f64(o: Vec3, d: Vec3, v0: Vec3, v1: Vec3, v2: Vec3) -> f64 {
     dot(n, sub(v0, o)) / denom
 }
 
-/// Slab test of four boxes against the ray segment `[t_min, t_max]`: `rows` holds min x, min y,
-/// min z, max x, max y, max z of the four boxes (a node's layout). Returns the mask of the boxes
-/// that overlap the segment and each box's entry distance. Conservative: the far distance of each
+/// Slab test of four boxes against the ray segment `[t_min, t_max]`: `row(i)` holds min x, min y,
+/// min z, max x, max y, max z of the four boxes (i = 0..6, a node's layout). Returns the mask of
+/// the boxes that overlap the segment and each box's entry distance. Conservative: the far distance of each
 /// slab is scaled by `1 + 2γ(3)` (pbrt-v4 Sec. 6.8.2) so rounding never rejects a box the exact ray
 /// touches. A zero direction component makes `1/d` infinite; if the origin lies exactly on that
 /// slab's plane, `(b − o)·(1/d)` is `0 · inf = NaN`, meaning "the ray runs inside the plane": such a
 /// slab is ignored (it does not restrict t), which is exact for the far plane and conservative for
 /// the near one; `select` on an ordered comparison (false for NaN) keeps the running bound.
 #[inline(always)]
-pub fn slab4(pre: &RayPre, rows: &[[f32; 4]; 6], t_min: f32, t_max: f32) -> (u32, [f32; 4]) {
+fn slab4_rows(pre: &RayPre, row: impl Fn(usize) -> Vec4, t_min: f32, t_max: f32) -> (u32, Vec4) {
     let mut near = Vec4::splat(t_min);
     let mut far = Vec4::splat(t_max);
     let scale = Vec4::splat(far_scale());
     for axis in 0..3 {
-        let (lo, hi) = (Vec4::from_array(rows[axis]), Vec4::from_array(rows[axis + 3]));
+        let (lo, hi) = (row(axis), row(axis + 3));
         let (n, f) = if pre.neg[axis] { (hi, lo) } else { (lo, hi) };
         let o = Vec4::splat(pre.o[axis]);
         let inv = Vec4::splat(pre.inv_d[axis]);
@@ -360,18 +360,73 @@ pub fn slab4(pre: &RayPre, rows: &[[f32; 4]; 6], t_min: f32, t_max: f32) -> (u32
         near = Vec4::select(tn.cmpgt(near), tn, near);
         far = Vec4::select(tf.cmplt(far), tf, far);
     }
-    (near.cmple(far).bitmask(), near.to_array())
+    (near.cmple(far).bitmask(), near)
+}
+
+/// [`slab4_rows`] on the eight boxes of an 8-wide node (`rows[i]` as `row(i)` there, eight lanes),
+/// in baseline x86-64 code: each half of the node by the SSE test. [`slab8_avx`] is the same test in one AVX
+/// pass, bit for bit.
+#[inline(always)]
+pub fn slab8(pre: &RayPre, rows: &[[f32; 8]; 6], t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+    let (lo_mask, lo_near) = slab4_rows(pre, |i| Vec4::from_slice(&rows[i][..4]), t_min, t_max);
+    let (hi_mask, hi_near) = slab4_rows(pre, |i| Vec4::from_slice(&rows[i][4..]), t_min, t_max);
+    let mut near = [0.0; 8];
+    near[..4].copy_from_slice(&lo_near.to_array());
+    near[4..].copy_from_slice(&hi_near.to_array());
+    (lo_mask | hi_mask << 4, near)
+}
+
+/// [`slab8`] with AVX: the eight lanes in one 256-bit vector. `max`/`min` are the selects of
+/// [`slab4_rows`]: `vmaxps(a, b)` is `a > b ? a : b`, returning `b` when either is NaN, which is
+/// `select(a.cmpgt(b), a, b)` exactly (likewise `vminps` and `cmplt`), so every lane's result is
+/// [`slab8`]'s bit for bit.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+pub fn slab8_avx(pre: &RayPre, rows: &[[f32; 8]; 6], t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+    use std::arch::x86_64::*;
+    let load = |i: usize| {
+        // SAFETY: `rows[i]` (i < 6, else the index panics) is eight contiguous f32, exactly what
+        // the unaligned 256-bit load reads.
+        unsafe { _mm256_loadu_ps(rows[i].as_ptr()) }
+    };
+    let mut near = _mm256_set1_ps(t_min);
+    let mut far = _mm256_set1_ps(t_max);
+    let scale = _mm256_set1_ps(far_scale());
+    for axis in 0..3 {
+        let (lo, hi) = (load(axis), load(axis + 3));
+        let (n, f) = if pre.neg[axis] { (hi, lo) } else { (lo, hi) };
+        let o = _mm256_set1_ps(pre.o[axis]);
+        let inv = _mm256_set1_ps(pre.inv_d[axis]);
+        let tn = _mm256_mul_ps(_mm256_sub_ps(n, o), inv);
+        let tf = _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(f, o), inv), scale);
+        near = _mm256_max_ps(tn, near);
+        far = _mm256_min_ps(tf, far);
+    }
+    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+    let mut out = [0.0f32; 8];
+    // SAFETY: `out` is eight f32, what the unaligned 256-bit store writes.
+    unsafe { _mm256_storeu_ps(out.as_mut_ptr(), near) };
+    (mask, out)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The scalar view of [`slab4`]: one box in all four slots (which must agree).
+    /// The scalar view of [`slab8`]: one box in all eight slots (which must agree), and the same
+    /// answer and entry distances from [`slab8_avx`] where the CPU has AVX2.
     fn slab(pre: &RayPre, min: Vec3, max: Vec3, t_min: f32, t_max: f32) -> bool {
-        let rows = [min.x, min.y, min.z, max.x, max.y, max.z].map(|v| [v; 4]);
-        let (mask, _) = slab4(pre, &rows, t_min, t_max);
-        assert!(mask == 0 || mask == 0b1111, "the four slots disagree: {mask:b}");
+        let rows = [min.x, min.y, min.z, max.x, max.y, max.z].map(|v| [v; 8]);
+        let (mask, near) = slab8(pre, &rows, t_min, t_max);
+        assert!(mask == 0 || mask == 0xff, "the eight slots disagree: {mask:b}");
+        #[cfg(target_arch = "x86_64")]
+        if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU has the features `slab8_avx` is compiled for.
+            let (avx_mask, avx_near) = unsafe { slab8_avx(pre, &rows, t_min, t_max) };
+            assert_eq!(avx_mask, mask);
+            assert_eq!(avx_near.map(f32::to_bits), near.map(f32::to_bits));
+        }
         mask != 0
     }
 
