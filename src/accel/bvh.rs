@@ -672,7 +672,31 @@ mod tests {
     #[test]
     fn tree_invariants_hold() {
         let sphere = icosphere(5); // 20480 triangles: exercises the parallel build
-        let bvh = Bvh::build(std::slice::from_ref(&sphere));
+        check_tree(&Bvh::build(std::slice::from_ref(&sphere)), &sphere);
+    }
+
+    #[test]
+    fn tree_split_in_parallel_rounds_is_sound() {
+        // The parallel rounds of `build_node` run only above 2M triangles by default: lowered
+        // here so that the top levels of a 20480-triangle sphere take that path.
+        let sphere = icosphere(5);
+        let params = BuildParams { parallel_split_prims: 1024, ..BuildParams::default() };
+        let bvh = Bvh::build_with(std::slice::from_ref(&sphere), &params);
+        check_tree(&bvh, &sphere);
+        let meshes = [sphere];
+        let mut rng = Rng::new(11, 0);
+        for r in 0..500 {
+            let o = random_point(&mut rng, -1.5, 1.5);
+            let ray = Ray::new(o, random_point(&mut rng, -1.0, 1.0) - o);
+            let expected = brute_force(&meshes, &ray);
+            assert_eq!(bvh.intersect(&ray), expected, "ray {r}: {ray:?}");
+            assert_eq!(bvh.occluded(&ray), expected.is_some(), "ray {r}: {ray:?}");
+        }
+    }
+
+    /// Checks the structure of `bvh`, built over `sphere` alone: every triangle in one leaf, in
+    /// its slot's box, copied exactly; every node reachable once; child boxes inside their slots.
+    fn check_tree(bvh: &Bvh, sphere: &Arc<TriangleMesh>) {
         assert_eq!(bvh.triangle_count(), sphere.triangle_count());
         // Every (geom, prim) of the mesh in exactly one packet lane.
         let mut seen = vec![false; bvh.triangle_count()];

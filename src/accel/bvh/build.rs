@@ -97,6 +97,11 @@ pub struct BuildParams {
     /// SAH cost of visiting an interior node, relative to one test of a packet of four triangles
     /// (`triangle::intersect4_k`): a leaf of `n` triangles costs `ceil(n / 4)` (`packets`).
     pub traversal_cost: f32,
+    /// Nodes over more primitives than this split their children in rounds, in parallel
+    /// (`build_node`), since a partition is sequential. Only the top of very large scenes by
+    /// default: splitting in rounds rather than largest first changes the tree (with 64k the
+    /// benchmark scene's tree had 14% more nodes).
+    pub parallel_split_prims: usize,
 }
 
 /// Triangles per leaf packet (`triangle::Tri4`).
@@ -111,7 +116,7 @@ fn packets(n: usize) -> f32 {
 impl Default for BuildParams {
     /// Measured on the benchmark scene (docs/bench.md).
     fn default() -> Self {
-        BuildParams { max_leaf: 8, traversal_cost: 1.0 }
+        BuildParams { max_leaf: 8, traversal_cost: 1.0, parallel_split_prims: 2 * 1024 * 1024 }
     }
 }
 
@@ -182,11 +187,29 @@ struct Binner {
 }
 
 impl Binner {
-    #[inline]
-    fn bin(&self, c: Vec3, axis: usize) -> usize {
+    /// The bins of centroid `c` on the three axes: `⌊(c − origin) · scale⌋` clamped to
+    /// `[0, bins − 1]`, a negative or NaN coordinate in bin 0 (the clamp catches `x == bins`
+    /// from rounding). The clamp is done in f32, so that the conversion is one instruction.
+    #[inline(always)]
+    fn bins_of(&self, c: Vec3A) -> [usize; 3] {
+        let k = (c - Vec3A::from(self.origin)) * Vec3A::from(self.scale);
+        let last = Vec3A::splat((self.bins - 1) as f32);
+        // Ordered comparisons are false for NaN: a NaN lane becomes 0, then stays below `last`.
+        let k = Vec3A::select(k.cmpge(Vec3A::ZERO), k, Vec3A::ZERO);
+        let k = Vec3A::select(k.cmplt(last), k, last);
+        // SAFETY: every lane is now finite and within [0, bins − 1] ⊂ [0, 16), where the
+        // unchecked float-to-integer conversion is defined (it truncates, as `as` does).
+        k.to_array().map(|x| unsafe { x.to_int_unchecked::<u32>() } as usize)
+    }
+
+    /// Whether centroid `c` falls in a bin below `bin` on `axis` (`bins_of(c)[axis] < bin`, for
+    /// `1 ≤ bin ≤ bins − 1`), without the conversion: for `x = (c − origin) · scale`,
+    /// `⌊x⌋ < bin ⇔ x < bin`; a negative or NaN `x` is bin 0, below (`!(x >= bin)` holds for NaN);
+    /// and the clamp to `bins − 1 ≥ bin` changes no answer.
+    #[inline(always)]
+    fn below(&self, c: Vec3A, axis: usize, bin: usize) -> bool {
         let x = (c[axis] - self.origin[axis]) * self.scale[axis];
-        // `as` saturates (and maps NaN to 0); the `min` catches x == bins from rounding.
-        (x as usize).min(self.bins - 1)
+        !(x >= bin as f32)
     }
 }
 
@@ -202,31 +225,43 @@ struct BinA {
     count: u32,
 }
 
+/// Bins `prims`. Alternate primitives go to two sets of bins, merged at the end: consecutive
+/// primitives are often neighbours (meshes are stored in order) and fall in the same bins, and
+/// with one set each update would wait for the previous one's store to the same bin.
 fn bin_seq(prims: &[BuildPrim], binner: &Binner) -> Bins {
     let empty = BinA { min: Vec3A::INFINITY, max: Vec3A::NEG_INFINITY, count: 0 };
     let nb = binner.bins;
-    let mut bins = [[empty; BINS]; 3];
-    let origin = Vec3A::from(binner.origin);
-    let scale = Vec3A::from(binner.scale);
-    for p in prims {
-        let (lo, hi) = (Vec3A::from(p.min), Vec3A::from(p.max));
-        let c = (lo + hi) * 0.5;
-        // The bin on each axis, as `Binner::bin` computes it (`as` saturates NaN and negatives).
-        let k = (c - origin) * scale;
-        for (axis, axis_bins) in bins.iter_mut().enumerate() {
-            let b = &mut axis_bins[(k[axis] as usize).min(nb - 1)];
-            b.count += 1;
-            b.min = b.min.min(lo);
-            b.max = b.max.max(hi);
-        }
+    let mut bins = [[[empty; BINS]; 3]; 2];
+    let [even, odd] = &mut bins;
+    let pairs = prims.chunks_exact(2);
+    for p in pairs.remainder() {
+        bin_one(even, p, binner);
+    }
+    for pair in pairs {
+        bin_one(even, &pair[0], binner);
+        bin_one(odd, &pair[1], binner);
     }
     let mut out = [[Bin::EMPTY; BINS]; 3];
-    for (o, b) in out.iter_mut().zip(&bins) {
-        for (o, b) in o[..nb].iter_mut().zip(&b[..nb]) {
-            *o = Bin { bounds: Aabb { min: b.min.into(), max: b.max.into() }, centroids: Aabb::EMPTY, count: b.count };
+    for (o, (a, b)) in out.iter_mut().zip(bins[0].iter().zip(&bins[1])) {
+        for (o, (a, b)) in o[..nb].iter_mut().zip(a[..nb].iter().zip(&b[..nb])) {
+            let bounds = Aabb { min: a.min.min(b.min).into(), max: a.max.max(b.max).into() };
+            *o = Bin { bounds, centroids: Aabb::EMPTY, count: a.count + b.count };
         }
     }
     out
+}
+
+/// Adds `p` to its bin on each axis.
+#[inline(always)]
+fn bin_one(bins: &mut [[BinA; BINS]; 3], p: &BuildPrim, binner: &Binner) {
+    let (lo, hi) = (Vec3A::from(p.min), Vec3A::from(p.max));
+    let k = binner.bins_of((lo + hi) * 0.5);
+    for (axis, axis_bins) in bins.iter_mut().enumerate() {
+        let b = &mut axis_bins[k[axis]];
+        b.count += 1;
+        b.min = b.min.min(lo);
+        b.max = b.max.max(hi);
+    }
 }
 
 fn merge_bins(mut a: Bins, b: Bins) -> Bins {
@@ -293,23 +328,26 @@ fn best_split(bins: &Bins, nb: usize, parent_area: f32, centroid_extent: Vec3, p
 }
 
 /// Reorders `prims` so that those for which `left` (given the primitive's centroid) holds come
-/// first; returns how many they are and the centroid bounds of both sides.
-fn partition(prims: &mut [BuildPrim], left: impl Fn(Vec3) -> bool) -> (usize, Aabb, Aabb) {
-    let (mut lc, mut rc) = (Aabb::EMPTY, Aabb::EMPTY);
+/// first; returns how many they are and the centroid bounds of both sides. The bounds grow in
+/// SIMD vectors (`c.min(bound)`: a NaN centroid leaves the bound as it was, as `Aabb::grow`).
+fn partition(prims: &mut [BuildPrim], left: impl Fn(Vec3A) -> bool) -> (usize, Aabb, Aabb) {
+    let (mut lmin, mut lmax) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+    let (mut rmin, mut rmax) = (lmin, lmax);
     let mut i = 0;
     let mut j = prims.len();
     while i < j {
-        let c = prims[i].centroid();
+        let c = (Vec3A::from(prims[i].min) + Vec3A::from(prims[i].max)) * 0.5;
         if left(c) {
-            lc.grow(c);
+            (lmin, lmax) = (c.min(lmin), c.max(lmax));
             i += 1;
         } else {
-            rc.grow(c);
+            (rmin, rmax) = (c.min(rmin), c.max(rmax));
             j -= 1;
             prims.swap(i, j);
         }
     }
-    (i, lc, rc)
+    let aabb = |min: Vec3A, max: Vec3A| Aabb { min: min.into(), max: max.into() };
+    (i, aabb(lmin, lmax), aabb(rmin, rmax))
 }
 
 /// Below this many primitives a range is split by the exact SAH over its sorted centroids instead
@@ -388,7 +426,7 @@ fn split(prims: &mut [BuildPrim], r: &Range, params: &BuildParams) -> Option<(Ra
             if n <= params.max_leaf && s.cost >= packets(n) {
                 return None;
             }
-            let (mid, lc, rc) = partition(slice, |c| binner.bin(c, s.axis) < s.bin);
+            let (mid, lc, rc) = partition(slice, |c| binner.below(c, s.axis, s.bin));
             if mid > 0 && mid < n {
                 let fold = |bins: &[Bin]| bins.iter().fold(Bin::EMPTY, |a, b| a.merge(b));
                 let (mut l, mut rt) = (fold(&bins[s.axis][..s.bin]), fold(&bins[s.axis][s.bin..]));
@@ -434,6 +472,29 @@ pub(super) fn build(prims: &mut [BuildPrim], params: &BuildParams) -> Vec<Node> 
     nodes
 }
 
+/// `split` of each of `ranges` (disjoint ranges of `prims`, in order), in parallel on rayon.
+fn split_all(prims: &mut [BuildPrim], ranges: &[Range], params: &BuildParams) -> Vec<Option<(Range, Range)>> {
+    let mut slices = Vec::with_capacity(ranges.len());
+    let mut rest = prims;
+    let mut offset = 0;
+    for r in ranges {
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut(r.start + r.len - offset);
+        slices.push(&mut head[r.start - offset..]);
+        rest = tail;
+        offset = r.start + r.len;
+    }
+    ranges
+        .par_iter()
+        .zip(slices)
+        .map(|(r, slice)| {
+            let (mut l, mut rt) = split(slice, &Range { start: 0, ..*r }, params)?;
+            l.start += r.start;
+            rt.start += r.start;
+            Some((l, rt))
+        })
+        .collect()
+}
+
 /// Appends the subtree over `prims` (which start at `base` in the whole array) to `out`, its
 /// root first; `children` are its first children (one range, or the two halves of a split the
 /// parent already made). Returns the root's index in `out`.
@@ -444,26 +505,65 @@ fn build_node(
     out: &mut Vec<Node>,
     params: &BuildParams,
 ) -> u32 {
-    // Split the largest open child until there are `WIDTH` (Embree's wide-BVH builders do the same).
-    while children.len() < WIDTH {
-        let open = children
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| !c.leaf && c.len > 1)
-            .max_by(|a, b| a.1.ext.bounds.surface_area().total_cmp(&b.1.ext.bounds.surface_area()));
-        let Some((i, _)) = open else { break };
-        match split(prims, &children[i], params) {
-            None => children[i].leaf = true,
-            Some((l, r)) => {
-                children[i] = l;
-                children.insert(i + 1, r);
+    if prims.len() > params.parallel_split_prims {
+        // A large node: its partitions are sequential, so they are made in rounds, the open
+        // children of a round split in parallel (all of them, or the largest if they would make
+        // more than `WIDTH`). On 2 cores this halves the time of the top levels, where the
+        // subtrees are not yet parallel.
+        loop {
+            let room = WIDTH - children.len();
+            let mut open: Vec<usize> =
+                (0..children.len()).filter(|&i| !children[i].leaf && children[i].len > 1).collect();
+            if room == 0 || open.is_empty() {
+                break;
+            }
+            let area = |i: usize| children[i].ext.bounds.surface_area();
+            open.sort_by(|&a, &b| area(b).total_cmp(&area(a)));
+            open.truncate(room);
+            open.sort_unstable();
+            let ranges: Vec<Range> = open.iter().map(|&i| children[i]).collect();
+            // In reverse, so that an insertion does not move the children still to update.
+            for (&i, halves) in open.iter().zip(split_all(prims, &ranges, params)).rev() {
+                match halves {
+                    None => children[i].leaf = true,
+                    Some((l, r)) => {
+                        children[i] = l;
+                        children.insert(i + 1, r);
+                    }
+                }
+            }
+        }
+    } else {
+        // Split the largest open child until there are `WIDTH` (Embree's wide-BVH builders do
+        // the same).
+        while children.len() < WIDTH {
+            let open = children
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| !c.leaf && c.len > 1)
+                .max_by(|a, b| a.1.ext.bounds.surface_area().total_cmp(&b.1.ext.bounds.surface_area()));
+            let Some((i, _)) = open else { break };
+            match split(prims, &children[i], params) {
+                None => children[i].leaf = true,
+                Some((l, r)) => {
+                    children[i] = l;
+                    children.insert(i + 1, r);
+                }
             }
         }
     }
-    // Decide what the undecided children are: a leaf, or a node whose first split is made here.
+    // Decide what the undecided children are: a leaf, or a node whose first split is made here
+    // (in parallel for a large node).
+    let undecided: Vec<Range> = children.iter().filter(|c| !c.leaf).copied().collect();
+    let mut firsts = if prims.len() > params.parallel_split_prims {
+        split_all(prims, &undecided, params)
+    } else {
+        undecided.iter().map(|c| split(prims, c, params)).collect()
+    }
+    .into_iter();
     let mut sub: Vec<Option<Vec<Range>>> = Vec::with_capacity(children.len());
     for c in &mut children {
-        let first = if c.leaf { None } else { split(prims, c, params) };
+        let first = if c.leaf { None } else { firsts.next().flatten() };
         c.leaf = first.is_none();
         sub.push(first.map(|(l, r)| vec![l, r]));
     }
