@@ -147,6 +147,12 @@ impl PathTracer {
         let use_nee = self.settings.mis != Mis::BsdfOnly && !scene.lights.is_empty();
         let mut depth = 0u32;
 
+        // Light selection and the emitter half of its sample (`Light::sample_li_point`) from the
+        // light sample's four uniforms; only called when there are lights.
+        let choose_light = |u: [f32; 4]| {
+            let (index, pmf) = scene.light_sampler.distribution.sample_index(u[0]);
+            (index, pmf, scene.lights[index].sample_li_point([u[1], u[2], u[3]]))
+        };
         let add = |l: &mut Rgb, c: Rgb, counters: &mut Counters| {
             if is_finite(c) {
                 *l += c;
@@ -164,12 +170,16 @@ impl PathTracer {
             // then the vertices they name): the same numbers in the same order as drawing them
             // where they are used. Only where a vertex is sure to draw them: not at the last depth,
             // and not in masked scenes, where the hit may turn out to be no surface.
+            // The light's choice and its point on the emitter do not depend on the shading point
+            // either, so they are drawn here too (when NEE is on; at a specular vertex they go
+            // unused).
             let early = match &hit {
                 Some(hit) if !scene.masked && depth < self.settings.max_depth => {
                     let u_light: [f32; 4] = rng.next_n();
                     scene.prefetch_vertices(hit);
                     let u_bsdf: [f32; 4] = rng.next_n();
-                    Some((u_light, u_bsdf))
+                    let light_point = use_nee.then(|| choose_light(u_light));
+                    Some((u_light, u_bsdf, light_point))
                 }
                 _ => None,
             };
@@ -217,11 +227,12 @@ impl PathTracer {
             // Next-event estimation (its uniforms are drawn even when unused, so that the stream
             // position depends only on the path's vertices). Nothing is drawn between the two
             // blocks, so drawing both here is drawing them where they are used.
-            let (u_light, [u0, u1, u2, u_rr]) = early.unwrap_or_else(|| (rng.next_n(), rng.next_n()));
+            let (u_light, [u0, u1, u2, u_rr], light_point) =
+                early.unwrap_or_else(|| (rng.next_n(), rng.next_n(), None));
             if use_nee && !material.is_specular() {
-                let (index, pmf, _) = scene.light_sampler.distribution.sample_discrete(u_light[0]);
+                let (index, pmf, point) = light_point.unwrap_or_else(|| choose_light(u_light));
                 let light = &scene.lights[index];
-                if let Some(ls) = light.sample_li(si.p, [u_light[1], u_light[2], u_light[3]]) {
+                if let Some(ls) = light.li_from_point(si.p, &point) {
                     if ls.pdf > 0.0 && ls.radiance != Rgb::ZERO {
                         let wi = frame.to_local(ls.wi);
                         let f = material.eval(wo, wi, TransportMode::Radiance) * wi.z.abs();

@@ -106,7 +106,7 @@ pub fn sample_mesh_point(mesh: &TriangleMesh, triangles: &Distribution1D, u: [f3
     if triangles.is_empty() {
         return None;
     }
-    let (prim, pmf, _) = triangles.sample_discrete(u[0]);
+    let (prim, pmf) = triangles.sample_index(u[0]);
     if !(pmf > 0.0) {
         return None;
     }
@@ -195,11 +195,12 @@ impl AreaLight {
     /// `sample_mesh_point` on this light's mesh, with the triangle's normal from `normals` (the
     /// same value `triangle_normal` computes: a normal per light sample in f64 showed as 1.4–3% of
     /// pt's profile).
-    fn sample_point(&self, u: [f32; 3]) -> Option<MeshPoint> {
+    #[inline]
+    pub(super) fn sample_point(&self, u: [f32; 3]) -> Option<MeshPoint> {
         if self.triangles.is_empty() {
             return None;
         }
-        let (prim, pmf, _) = self.triangles.sample_discrete(u[0]);
+        let (prim, pmf) = self.triangles.sample_index(u[0]);
         let n = *self.normals.get(prim)?;
         (pmf > 0.0).then(|| point_on_triangle(&self.mesh, prim as u32, [u[1], u[2]], n))
     }
@@ -222,7 +223,12 @@ impl AreaLight {
     /// A point on the light by uniform area sampling, seen from `reference`. `None` when the point
     /// sends nothing towards `reference` (back of a one-sided emitter, grazing, coincident).
     pub fn sample_li(&self, reference: Vec3, u: [f32; 3]) -> Option<LightLiSample> {
-        let q = self.sample_point(u)?;
+        self.li_from_point(reference, &self.sample_point(u)?)
+    }
+
+    /// `sample_li` seen from `reference` for the point `q` that `sample_point` drew.
+    #[inline]
+    pub(super) fn li_from_point(&self, reference: Vec3, q: &MeshPoint) -> Option<LightLiSample> {
         let to_light = q.p - reference;
         let dist2 = to_light.length_squared();
         if !(dist2 > 0.0) {

@@ -126,6 +126,15 @@ pub struct ImageEnvironment {
     pub scene_radius: f32,
 }
 
+/// What `Light::sample_li_point` draws before the reference point is known.
+#[derive(Clone, Copy, Debug)]
+pub enum LiPoint {
+    /// The point on an area light (`None` when the light cannot produce one).
+    Area(Option<MeshPoint>),
+    /// The uniforms, for a light whose sample needs the reference point throughout.
+    Deferred([f32; LI_SAMPLE_DIMS]),
+}
+
 /// A point on an emitter seen from a reference point, as next-event estimation needs it.
 #[derive(Clone, Copy, Debug)]
 pub struct LightLiSample {
@@ -153,6 +162,7 @@ impl LightLiSample {
     /// emitter itself before its end. Far from the origin (the room of tests/extremes.rs
     /// translated by 1e5: bound ≈ 0.04 units) that darkened walls that see the light at grazing
     /// angles by about 1%.
+    #[inline]
     pub fn shadow_ray_from(&self, p: Vec3, p_error: Vec3, ng: Vec3) -> Ray {
         if self.infinite {
             spawn_ray(p, p_error, ng, self.wi)
@@ -203,10 +213,27 @@ pub struct EmissionSample {
 impl Light {
     /// Samples a direction towards this light from `reference` with uniforms `u`.
     pub fn sample_li(&self, reference: Vec3, u: [f32; LI_SAMPLE_DIMS]) -> Option<LightLiSample> {
+        self.li_from_point(reference, &self.sample_li_point(u))
+    }
+    /// The half of `sample_li` that does not depend on the reference point: for an area light the
+    /// point on the emitter (a path tracer draws it while the shading point's vertices are still
+    /// loading); for an environment nothing yet. [`Self::li_from_point`] completes it.
+    #[inline]
+    pub fn sample_li_point(&self, u: [f32; LI_SAMPLE_DIMS]) -> LiPoint {
         match self {
-            Light::Area(l) => l.sample_li(reference, u),
-            Light::ConstantEnvironment(l) => l.sample_li(reference, u),
-            Light::ImageEnvironment(l) => l.sample_li(reference, u),
+            Light::Area(l) => LiPoint::Area(l.sample_point(u)),
+            Light::ConstantEnvironment(_) | Light::ImageEnvironment(_) => LiPoint::Deferred(u),
+        }
+    }
+    /// `sample_li` from its reference-independent half `point` (drawn by this light's
+    /// [`Self::sample_li_point`]).
+    #[inline]
+    pub fn li_from_point(&self, reference: Vec3, point: &LiPoint) -> Option<LightLiSample> {
+        match (self, point) {
+            (Light::Area(l), LiPoint::Area(q)) => l.li_from_point(reference, q.as_ref()?),
+            (Light::ConstantEnvironment(l), LiPoint::Deferred(u)) => l.sample_li(reference, *u),
+            (Light::ImageEnvironment(l), LiPoint::Deferred(u)) => l.sample_li(reference, *u),
+            _ => None,
         }
     }
     /// Solid-angle density at `reference` of `sample_li` choosing the point `p_light` with normal

@@ -91,12 +91,32 @@ impl Distribution1D {
             return (0, 0.0, u);
         }
         let uf = u as f64;
-        // The interval with cdf[i] <= u < cdf[i+1]; empty intervals (zero weight) are never chosen.
-        let i = (self.cdf.partition_point(|&c| c <= uf).max(1) - 1).min(n - 1);
+        let i = self.interval_of(uf);
         let (lo, hi) = (self.cdf[i], self.cdf[i + 1]);
         let pmf = hi - lo;
         let remapped = if pmf > 0.0 { ((uf - lo) / pmf).clamp(0.0, ONE_MINUS_EPSILON as f64) as f32 } else { 0.0 };
         (i, pmf as f32, remapped.min(ONE_MINUS_EPSILON))
+    }
+    /// `sample_discrete` without the remapped uniform: `(index, probability of index)`, the same
+    /// two values, for callers that do not reuse `u` (light selection per path vertex: the remap's
+    /// f64 division was most of the choice's cost). An empty distribution returns `(0, 0.0)`.
+    #[inline]
+    pub fn sample_index(&self, u: f32) -> (usize, f32) {
+        if self.is_empty() {
+            return (0, 0.0);
+        }
+        let i = self.interval_of(u as f64);
+        (i, (self.cdf[i + 1] - self.cdf[i]) as f32)
+    }
+    /// The interval with cdf[i] <= u < cdf[i+1] of a non-empty distribution, clamped to the items;
+    /// empty intervals (zero weight) are never chosen. One item needs no search.
+    #[inline]
+    fn interval_of(&self, u: f64) -> usize {
+        let n = self.len();
+        if n == 1 {
+            return 0;
+        }
+        (self.cdf.partition_point(|&c| c <= u).max(1) - 1).min(n - 1)
     }
     /// Probability of choosing `index` discretely (0 out of range).
     pub fn pdf_discrete(&self, index: usize) -> f32 {
@@ -239,8 +259,10 @@ mod tests {
         let mut rng = Rng::new(1, 2);
         let n = 200_000;
         for _ in 0..n {
-            let (i, p, r) = d.sample_discrete(rng.uniform());
+            let u = rng.uniform();
+            let (i, p, r) = d.sample_discrete(u);
             assert!(p > 0.0 && (0.0..1.0).contains(&r));
+            assert_eq!(d.sample_index(u), (i, p), "u = {u}");
             counts[i] += 1;
         }
         let cfg = Chi2Config { res: [8, 1], samples: n, test_count: CHI2_TESTS_SAMPLING, ..Default::default() };
@@ -267,6 +289,13 @@ mod tests {
         let e = Distribution1D::new(&[]);
         assert!(e.is_empty());
         assert_eq!(e.sample_discrete(0.3).1, 0.0);
+        assert_eq!(e.sample_index(0.3), (0, 0.0));
+        // One item: no search, whatever the uniform (as the search gave).
+        let one = Distribution1D::new(&[0.7]);
+        for u in [0.0, 0.5, ONE_MINUS_EPSILON, 1.0, f32::NAN] {
+            assert_eq!(one.sample_index(u), (0, 1.0));
+            assert_eq!(one.sample_discrete(u).0, 0);
+        }
         assert_eq!(e.invert_discrete(0, 0.5), None);
         let bad = Distribution1D::new(&[f32::NAN, -1.0, 2.0]);
         assert_eq!(bad.pmf(2), 1.0);
