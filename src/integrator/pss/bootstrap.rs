@@ -31,16 +31,15 @@ pub struct BootstrapRun {
     pub elapsed: Duration,
 }
 
-/// The relative standard error of a mean of `n` samples with sum `sum` and sum of squares
-/// `sum_sq`: √(s²/n) / mean with the unbiased sample variance s²; `None` for a zero mean or n < 2.
-pub fn relative_standard_error(sum: f64, sum_sq: f64, n: u64) -> Option<f64> {
-    if n < 2 || !(sum > 0.0) {
+/// The variance of a mean of `n` samples with sum `sum` and sum of squares `sum_sq`, s²/n with the
+/// unbiased sample variance s² (as for independent samples); `None` for n < 2.
+pub fn variance_of_mean(sum: f64, sum_sq: f64, n: u64) -> Option<f64> {
+    if n < 2 {
         return None;
     }
     let n = n as f64;
     let mean = sum / n;
-    let variance = ((sum_sq - n * mean * mean) / (n - 1.0)).max(0.0);
-    Some((variance / n).sqrt() / mean)
+    Some(((sum_sq - n * mean * mean) / (n - 1.0)).max(0.0) / n)
 }
 
 impl BootstrapRun {
@@ -151,14 +150,13 @@ fn run_batches<S: Send + Sync>(
 
 #[cfg(test)]
 mod tests {
-    use super::relative_standard_error;
+    use super::variance_of_mean;
 
-    /// Samples 1, 2, 3: mean 2, s² = 1, SE = √(1/3), relative SE = 0.2887; no SE without light.
+    /// Samples 1, 2, 3: mean 2, s² = 1, variance of the mean 1/3; none from one sample.
     #[test]
-    fn relative_standard_error_of_a_small_sample() {
-        let rse = relative_standard_error(6.0, 14.0, 3).expect("defined");
-        assert!((rse - (1.0f64 / 3.0).sqrt() / 2.0).abs() < 1e-12, "{rse}");
-        assert_eq!(relative_standard_error(0.0, 0.0, 10), None);
-        assert_eq!(relative_standard_error(1.0, 1.0, 1), None);
+    fn variance_of_a_small_sample_mean() {
+        let v = variance_of_mean(6.0, 14.0, 3).expect("defined");
+        assert!((v - 1.0 / 3.0).abs() < 1e-12, "{v}");
+        assert_eq!(variance_of_mean(1.0, 1.0, 1), None);
     }
 }

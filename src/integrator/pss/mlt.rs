@@ -75,7 +75,7 @@ mod bootstrap_sample;
 mod depth_choice;
 mod render;
 use bootstrap_sample::{technique_target, PrimarySource};
-use depth_choice::LargeStepTotals;
+use depth_choice::{BEstimate, LargeStepTotals};
 
 /// Primary-sample streams: camera subpath, light subpath, connection, technique (MMLT's u_t).
 const CAMERA_STREAM: usize = 0;
@@ -86,6 +86,8 @@ const STREAM_COUNT: usize = 4;
 
 /// Distinguishes the bootstrap's random streams from the render's.
 const BOOTSTRAP_SEED_SALT: u64 = 0xB007_5742_u64;
+/// Distinguishes the streams of depth 0's replicates (`DIRECT_REPLICATES`) from the bootstrap's.
+const DIRECT_SEED_SALT: u64 = 0xD14E_C700_0000_0000_u64;
 /// Distinguishes the chains' own streams (depth choice, acceptance) from the bootstrap's.
 const CHAIN_SEED_SALT: u64 = 0xC4A1_0000_u64;
 /// Distinguishes the sub-chains' mutation streams (stream c·D + d for chain c, depth d) from the
@@ -125,10 +127,13 @@ struct PathState {
     paths_nonzero: u32,
 }
 
-/// The bootstrap's result: per depth the sum of the targets of `paths` uniform samples.
-struct Bootstrap<'a> {
-    sums: &'a [f64],
-    paths: u64,
+/// The bootstrap's result as the normalisation and the depth choice read it.
+struct Bootstrap {
+    /// Per depth slot: b_d and what pooling it with the large steps needs.
+    estimates: Vec<BEstimate>,
+    /// Per depth slot: whether a sample of the full bootstrap found light there, so that chains
+    /// start from it (depth 0's replicates start no chains).
+    found: Vec<bool>,
 }
 
 /// A chain for one depth (MMLT) or for all depths (PSSMLT). A sub-chain of a depth the bootstrap
@@ -333,7 +338,7 @@ impl Mlt {
     /// The image of the driver's stacked per-depth film (module docs, "Normalisation"): depth d
     /// (rows [d·H, (d+1)·H)) scaled by n_d · b_d · P / (iterations of depth d), with b_d from the
     /// bootstrap and, with `progressive_b`, the large steps so far (`large_steps`, pooled in unit
-    /// order). Returns the b_d used. Serves the final image and the previews during the render
+    /// order; `BEstimate::pooled`). Returns the b_d used. Serves the final image and the previews during the render
     /// alike.
     fn normalised_image(
         &self,
@@ -348,12 +353,7 @@ impl Mlt {
         let mut total = vec![[0.0f64; 3]; pixels];
         let mut b = Vec::with_capacity(depths);
         for d in 0..depths {
-            let b_d = if self.settings.progressive_b {
-                let (sum, n) = large_steps[d];
-                (bootstrap.sums[d] + sum) / (bootstrap.paths + n) as f64
-            } else {
-                bootstrap.sums[d] / bootstrap.paths as f64
-            };
+            let b_d = self.b_estimate(&bootstrap.estimates[d], large_steps[d]);
             b.push(b_d);
             if iterations[d] == 0 {
                 continue;

@@ -77,8 +77,9 @@ pub struct MltSettings {
     pub small_step_min: f64,
     pub small_step_max: f64,
     /// Refine b_d with every large step during the render (large steps are uniform samples, so
-    /// they are extra bootstrap samples for free). On by default: the paper notes it is more
-    /// robust than the one-off bootstrap, and it costs nothing.
+    /// they are extra bootstrap samples for free), pooled with the bootstrap's estimate by inverse
+    /// variance (`mlt::depth_choice::BEstimate`). On by default: the paper notes it is more robust
+    /// than the one-off bootstrap, and it costs nothing.
     pub progressive_b: bool,
     /// MIS heuristic of the technique weights: "balance" (default) or "power".
     pub mis: MisHeuristic,

@@ -32,8 +32,8 @@
 //! (docs/mlt.md, "The bootstrap").
 
 use super::{
-    Mlt, PathState, SlotState, SubChain, BOOTSTRAP_SEED_SALT, CAMERA_STREAM, CONNECTION_STREAM, LIGHT_STREAM,
-    STREAM_COUNT, TECHNIQUE_STREAM,
+    Mlt, PathState, SlotState, SubChain, BOOTSTRAP_SEED_SALT, CAMERA_STREAM, CONNECTION_STREAM, DIRECT_SEED_SALT,
+    LIGHT_STREAM, STREAM_COUNT, TECHNIQUE_STREAM,
 };
 use crate::integrator::bdpt::{
     evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, FilmRegion, TechniqueSample,
@@ -79,7 +79,18 @@ pub(super) struct BootstrapSource {
 
 impl BootstrapSource {
     pub(super) fn new(kind: SamplerKind, seed: u64, index: u64, record: bool) -> BootstrapSource {
-        let key = seed ^ BOOTSTRAP_SEED_SALT;
+        Self::keyed(kind, seed ^ BOOTSTRAP_SEED_SALT, index, record)
+    }
+
+    /// Sample `index` of replicate `replicate` of depth 0's own estimate (`Mlt::direct_sample`):
+    /// streams keyed apart from the full bootstrap's and from the other replicates', so each
+    /// replicate is an independently scrambled Sobol sequence (or independent numbers).
+    pub(super) fn direct_replicate(kind: SamplerKind, seed: u64, replicate: usize, index: u64) -> BootstrapSource {
+        let key = seed ^ DIRECT_SEED_SALT ^ ((replicate as u64 + 1) << 40);
+        Self::keyed(kind, key, index, false)
+    }
+
+    fn keyed(kind: SamplerKind, key: u64, index: u64, record: bool) -> BootstrapSource {
         let current = Self::stream_source(kind, key, index, 0);
         let recorded = record.then(|| vec![Vec::new(); STREAM_COUNT]);
         BootstrapSource { kind, key, index, current, stream: 0, position: 0, recorded }
@@ -164,7 +175,10 @@ pub(super) fn technique_target(c: &TechniqueSample, counters: &mut Counters) -> 
 impl Mlt {
     /// Bootstrap sample `index`: pushes one target per depth slot to `out`. PSSMLT: the state's
     /// target (all techniques of its subpaths, Alg. 1). MMLT and RJMLT: per depth d the full BDPT
-    /// sample's B_d = (1/n_d)·Σ_s lum(w_{s,t} C_{s,t}) (module docs), whose mean is b_d.
+    /// sample's B_d = (1/n_d)·Σ_s lum(w_{s,t} C_{s,t}) (module docs), whose mean is b_d, and then
+    /// per depth Q_d = (1/n_d)·Σ_s lum(w_{s,t} C_{s,t})², whose mean is the second moment of one
+    /// large step's target (s uniform, ū uniform): what pooling b_d with the large steps weighs
+    /// them by (`mlt::BEstimate`).
     pub(super) fn bootstrap_sample(
         &self,
         ctx: &BdptContext,
@@ -181,13 +195,33 @@ impl Mlt {
         }
         let depths = self.depth_count();
         let first = out.len();
-        out.resize(first + depths, 0.0);
+        out.resize(first + 2 * depths, 0.0);
         self.for_each_technique(ctx, &mut source, 0, depths - 1, slot, counters, |d, _, target| {
             out[first + d] += target;
+            out[first + depths + d] += target * target;
         });
         for d in 0..depths {
-            out[first + d] /= self.technique_count(d) as f32;
+            let n = self.technique_count(d) as f32;
+            out[first + d] /= n;
+            out[first + depths + d] /= n;
         }
+    }
+
+    /// MMLT and RJMLT: sample `index` of replicate `replicate` of depth 0's own estimate of b_0,
+    /// the emitters seen directly: a camera ray and its emission (the one technique s = 0, t = 2,
+    /// as a depth-0 state evaluates it), from streams of the replicate's own (module docs of
+    /// `mlt`, "Depth 0's replicates").
+    pub(super) fn direct_sample(
+        &self,
+        ctx: &BdptContext,
+        seed: u64,
+        replicate: usize,
+        index: u64,
+        slot: &mut SlotState,
+        counters: &mut Counters,
+    ) -> f32 {
+        let mut source = BootstrapSource::direct_replicate(self.settings.bootstrap_sampler, seed, replicate, index);
+        self.evaluate(ctx, 0, &mut source, Some(0), slot, counters).target
     }
 
     /// Generates the bootstrap sample's subpaths for depths up to `top` (a camera subpath of
@@ -351,8 +385,8 @@ mod tests {
                     for index in 0..60u64 {
                         let mut b = Vec::new();
                         mlt.bootstrap_sample(&ctx, 7, index, &mut slot, &mut counters, &mut b);
-                        assert_eq!(b.len(), mlt.depth_count());
-                        for (d, &b_d) in b.iter().enumerate() {
+                        assert_eq!(b.len(), 2 * mlt.depth_count());
+                        for (d, &b_d) in b[..mlt.depth_count()].iter().enumerate() {
                             let n = mlt.technique_count(d);
                             // The depth's techniques from subpaths generated for depth d only.
                             let mut targets = vec![0.0f32; n];

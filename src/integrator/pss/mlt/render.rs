@@ -8,14 +8,14 @@ use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
-use super::{Bootstrap, ChainUnit, Mlt, MltRun, SlotState, SubChain, CHAIN_SEED_SALT};
+use super::{BEstimate, Bootstrap, ChainUnit, Mlt, MltRun, SlotState, SubChain, CHAIN_SEED_SALT};
 use super::{PathState, SUBCHAIN_SEED_SALT};
 use crate::film::Accumulator;
 use crate::integrator::driver::{
     boundary_counters, load_units, merge_chain_parts, merge_slot_states, save_units, state_film, ChainPart,
     ChainSession, CheckpointHook, Driver, PassBoundary, PassSet, RunStart, Slot, Tally,
 };
-use crate::integrator::pss::bootstrap::{relative_standard_error, run_shared_bootstrap};
+use crate::integrator::pss::bootstrap::{run_bootstrap, run_shared_bootstrap, variance_of_mean};
 use crate::integrator::pss::sampler::PssSampler;
 use crate::integrator::pss::stats::{MltStats, MoveStats};
 use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
@@ -32,9 +32,18 @@ struct BootstrapPart {
     sums: Vec<f64>,
     /// Per depth the sum of the squared targets (b_d's standard error in the statistics).
     sums_sq: Vec<f64>,
-    /// The sum of the squares of the samples' Σ_d n_d·B_d (MMLT, RJMLT: the standard error of the
-    /// bootstrap's image brightness; 0 for PSSMLT).
-    total_sum_sq: f64,
+    /// Per depth the samples with a non-zero target.
+    nonzero: Vec<u64>,
+    /// Per depth the sum of the samples' second moments of one large step's target (MMLT, RJMLT:
+    /// Q_d of `bootstrap_sample`; PSSMLT, whose large steps are its bootstrap samples: `sums_sq`).
+    large_step_sums_sq: Vec<f64>,
+    /// The sum of the squares of the samples' Σ_{d ≥ 1} n_d·B_d (MMLT, RJMLT: with depth 0's
+    /// replicates, the standard error of the bootstrap's image brightness; 0 for PSSMLT).
+    indirect_sum_sq: f64,
+    /// MMLT, RJMLT: depth 0's replicates (`DIRECT_REPLICATES`), per replicate the sum of its
+    /// `paths` targets, and their non-zero samples in all; empty for PSSMLT.
+    direct_sums: Vec<f64>,
+    direct_nonzero: u64,
     paths: u64,
     /// Wall time (0 in shards, whose bytes depend on their units only).
     seconds: f64,
@@ -61,8 +70,8 @@ impl ChainPart for MltPart {
     }
 
     fn absorb(&mut self, other: &MltPart) -> Result<(), StateError> {
-        let same_bootstrap =
-            (&self.bootstrap.sums, self.bootstrap.paths) == (&other.bootstrap.sums, other.bootstrap.paths);
+        let key = |b: &BootstrapPart| (b.sums.clone(), b.direct_sums.clone(), b.paths);
+        let same_bootstrap = key(&self.bootstrap) == key(&other.bootstrap);
         if !same_bootstrap || self.segment != other.segment {
             return Err(StateError::Mismatch("the shards did not start from the same bootstrap".into()));
         }
@@ -120,6 +129,56 @@ impl Integrator for Mlt {
 /// Per depth, the distribution of the bootstrap's targets the chains start from (`None` for a
 /// depth it found no light at).
 type StartDistributions = Vec<Option<Distribution1D>>;
+
+/// MMLT, RJMLT: independent replicates of depth 0's own estimate of b_0, each as many camera rays
+/// as the bootstrap has samples (`Mlt::direct_sample`; docs/mlt.md, "Depth 0's replicates").
+/// Depth 0 (the emitters seen directly) costs one ray per sample where a full BDPT sample at
+/// max_depth 16 traces about 33 subpath rays and a shadow ray per technique, and where an emitter
+/// is in view it dominates the brightness's variance: its image is an indicator of the emitters'
+/// outline on the film, which the bootstrap's Sobol points resolve only at their boundary pixels
+/// (the shipped Cornell box: 0.53% relative error for b_0 against 0.16% for the other depths
+/// together, 100,000 samples). Eight replicates cut b_0's error by √8 at the cost of 8 camera rays
+/// per bootstrap sample, and their spread is an honest estimate of its variance (7 degrees of
+/// freedom) where a Sobol sequence's own sample variance overstates it several times.
+const DIRECT_REPLICATES: usize = 8;
+
+impl BootstrapPart {
+    /// Per depth b_d and its variances (`BEstimate`), and whether the full bootstrap found light
+    /// there.
+    fn estimates(&self) -> Bootstrap {
+        let n = self.paths;
+        let estimates = (0..self.sums.len())
+            .map(|d| {
+                let mean = self.sums[d] / n.max(1) as f64;
+                // One large step's variance: its second moment less b_d² (the full bootstrap's).
+                let large_step_variance =
+                    (n >= 2).then(|| (self.large_step_sums_sq[d] / n as f64 - mean * mean).max(0.0));
+                if d == 0 && !self.direct_sums.is_empty() {
+                    let r = self.direct_sums.len();
+                    let means: Vec<f64> = self.direct_sums.iter().map(|s| s / n.max(1) as f64).collect();
+                    let mean = means.iter().sum::<f64>() / r as f64;
+                    let spread = means.iter().map(|m| (m - mean) * (m - mean)).sum::<f64>();
+                    BEstimate {
+                        mean,
+                        samples: n * r as u64,
+                        nonzero: self.direct_nonzero,
+                        variance: (n >= 1 && r >= 2).then(|| spread / (r * (r - 1)) as f64),
+                        large_step_variance,
+                    }
+                } else {
+                    BEstimate {
+                        mean,
+                        samples: n,
+                        nonzero: self.nonzero[d],
+                        variance: variance_of_mean(self.sums[d], self.sums_sq[d], n),
+                        large_step_variance,
+                    }
+                }
+            })
+            .collect();
+        Bootstrap { estimates, found: self.sums.iter().map(|&s| s > 0.0).collect() }
+    }
+}
 
 impl Mlt {
     /// The render with the driver's stacked per-depth film (`Integrator::render` keeps only the
@@ -193,7 +252,7 @@ impl Mlt {
 
         let passes = cs.passes(job.budget, pixels, per_pass, segment, units.len(), next_pass, progress);
         progress.message("mutating");
-        let bootstrap = Bootstrap { sums: &boot.sums, paths: boot.paths };
+        let bootstrap = boot.estimates();
         let preview = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
             let large_steps = self.large_step_totals(at.units);
             let iterations = self.iteration_counts(at.slots.iter().map(|slot| &slot.state));
@@ -288,31 +347,68 @@ impl Mlt {
             Budget::Seconds(s) if !same_everywhere => Some(s),
             _ => None,
         };
+        // MMLT and RJMLT push B_d and then Q_d per depth (`bootstrap_sample`).
+        let slots = if depths > 1 { 2 * depths } else { 1 };
         let boot = run_shared_bootstrap(
             driver,
             progress,
-            depths,
+            slots,
             self.settings.bootstrap,
             time_budget,
             |_| self.new_slot(0, 0),
             |i, slot, counters, out| self.bootstrap_sample(ctx, job.seed, i, slot, counters, out),
         );
         let n_boot = boot.paths;
-        let counters = boot.counters;
-        let seconds = boot.elapsed.as_secs_f64();
-        let targets = boot.targets;
-        let sums = boot.sums;
-        let sums_sq = boot.sums_sq;
-        // Per sample Σ_d n_d·B_d, the sample's BDPT estimate of the image's luminance.
-        let total_sum_sq = if depths > 1 {
+        let mut counters = boot.counters;
+        let mut elapsed = boot.elapsed;
+        let mut targets = boot.targets;
+        let mut sums = boot.sums;
+        let mut sums_sq = boot.sums_sq;
+        let large_step_sums_sq = if depths > 1 { sums.split_off(depths) } else { sums_sq.clone() };
+        sums_sq.truncate(depths);
+        targets.truncate(depths);
+        let nonzero = targets.iter().map(|t| t.iter().filter(|&&x| x > 0.0).count() as u64).collect();
+        // Per sample Σ_{d ≥ 1} n_d·B_d, the sample's BDPT estimate of the image's luminance less
+        // the emitters seen directly (depth 0, which its replicates estimate).
+        let indirect_sum_sq = if depths > 1 {
             (0..n_boot as usize)
                 .map(|i| {
-                    let total: f64 = (0..depths).map(|d| self.technique_count(d) as f64 * targets[d][i] as f64).sum();
+                    let total: f64 = (1..depths).map(|d| self.technique_count(d) as f64 * targets[d][i] as f64).sum();
                     total * total
                 })
                 .sum()
         } else {
             0.0
+        };
+        // Depth 0's replicates, as many camera rays each as the bootstrap took samples.
+        let (mut direct_sums, mut direct_nonzero) = (Vec::new(), 0);
+        if depths > 1 {
+            let replicates = run_bootstrap(
+                driver,
+                progress,
+                DIRECT_REPLICATES,
+                n_boot,
+                None,
+                |_| self.new_slot(0, 0),
+                |r, i, slot, counters| self.direct_sample(ctx, job.seed, r, i, slot, counters),
+            );
+            counters.merge(&replicates.counters);
+            elapsed += replicates.elapsed;
+            direct_sums = replicates.sums;
+            direct_nonzero = replicates.targets.iter().flatten().filter(|&&x| x > 0.0).count() as u64;
+        }
+        let seconds = elapsed.as_secs_f64();
+        let part = |warnings| BootstrapPart {
+            sums: sums.clone(),
+            sums_sq: sums_sq.clone(),
+            nonzero: Vec::clone(&nonzero),
+            large_step_sums_sq: large_step_sums_sq.clone(),
+            indirect_sum_sq,
+            direct_sums: direct_sums.clone(),
+            direct_nonzero,
+            paths: n_boot,
+            seconds,
+            warnings,
         };
         let b_total: f64 = sums.iter().map(|s| s / n_boot as f64).sum();
         let mut warnings: Vec<String> = Vec::new();
@@ -322,11 +418,7 @@ impl Mlt {
                  emitters are visible from the camera's surroundings, or raise `bootstrap`.",
                 n_boot
             ));
-            return Ok((
-                BootstrapPart { sums, sums_sq, total_sum_sq, paths: n_boot, seconds, warnings },
-                counters,
-                None,
-            ));
+            return Ok((part(warnings), counters, None));
         }
         // Without progressive b a depth's b_d stays the bootstrap's, so a depth it missed cannot
         // be recovered and is not chosen (`depth_choice`); a warning says so.
@@ -341,7 +433,7 @@ impl Mlt {
             }
         }
         let dists = targets.iter().zip(&sums).map(|(t, &s)| (s > 0.0).then(|| Distribution1D::new(t))).collect();
-        Ok((BootstrapPart { sums, sums_sq, total_sum_sq, paths: n_boot, seconds, warnings }, counters, Some(dists)))
+        Ok((part(warnings), counters, Some(dists)))
     }
 
     /// Chain `c`: each sub-chain starts from a bootstrap sample chosen ∝ its target (start-up bias
@@ -410,7 +502,7 @@ impl Mlt {
         let pixels = film.width as u64 * (film.height / self.depth_count()) as u64;
         let large_steps = self.large_step_totals(units);
         let iterations = self.iteration_counts(std::iter::once(&merged));
-        let bootstrap = Bootstrap { sums: &boot.sums, paths: boot.paths };
+        let bootstrap = boot.estimates();
         let (image, b_final) = self.normalised_image(film, &large_steps, &iterations, &bootstrap);
         let mut layers = Vec::new();
         if let Some(films) = merged.count_films.as_ref() {
@@ -425,19 +517,31 @@ impl Mlt {
             // The slot-order f64 sum would differ in its last bits between thread counts.
             depth.large_step_target_sum = *sum;
         }
-        let b_boot: Vec<f64> = boot.sums.iter().map(|s| s / boot.paths.max(1) as f64).collect();
+        let b_boot: Vec<f64> = bootstrap.estimates.iter().map(|e| e.mean).collect();
         stats.passes = tally.passes;
         stats.segment_length = tally.segment;
         stats.bootstrap_paths_per_depth = boot.paths;
         stats.bootstrap_seconds = boot.seconds;
         stats.warnings = boot.warnings.clone();
         stats.finish(pixels, &b_boot, &b_final);
-        for (depth, (&sum, &sum_sq)) in stats.per_depth.iter_mut().zip(boot.sums.iter().zip(&boot.sums_sq)) {
-            depth.b_bootstrap_relative_se = relative_standard_error(sum, sum_sq, boot.paths);
+        let relative_se = |e: &BEstimate| e.variance.filter(|_| e.mean > 0.0).map(|v| v.sqrt() / e.mean);
+        for (depth, e) in stats.per_depth.iter_mut().zip(&bootstrap.estimates) {
+            depth.b_bootstrap_relative_se = relative_se(e);
         }
         if self.depth_count() > 1 {
-            let total: f64 = boot.sums.iter().enumerate().map(|(d, s)| self.technique_count(d) as f64 * s).sum();
-            stats.b_bootstrap_total_relative_se = relative_standard_error(total, boot.total_sum_sq, boot.paths);
+            // Σ_d n_d·b_d: depth 0 from its replicates (independent of the full samples), the
+            // other depths from the full samples' per-sample sums.
+            let indirect_sum: f64 =
+                (1..self.depth_count()).map(|d| self.technique_count(d) as f64 * boot.sums[d]).sum();
+            let indirect = indirect_sum / boot.paths.max(1) as f64;
+            let indirect_variance = variance_of_mean(indirect_sum, boot.indirect_sum_sq, boot.paths);
+            let direct = &bootstrap.estimates[0];
+            let total = BEstimate {
+                mean: direct.mean + indirect,
+                variance: direct.variance.zip(indirect_variance).map(|(a, b)| a + b),
+                ..BEstimate::default()
+            };
+            stats.b_bootstrap_total_relative_se = relative_se(&total);
         }
         let mut counters = tally.counters;
         let strategy = |m: &MoveStats| AcceptanceCount { proposed: m.proposals, accepted: m.accepted as f64 };
@@ -464,4 +568,46 @@ fn merge_slot(merged: &mut SlotState, other: &SlotState) {
         }
     }
     merged.stats.merge(&other.stats);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::BootstrapPart;
+
+    /// b_0 and its variance come from depth 0's replicates: the mean of the replicate means and
+    /// their spread / (R(R − 1)), the honest variance of a mean of independent replicates (a
+    /// Sobol sequence's own sample variance overstates it); the other depths from the full
+    /// samples, variance s²/N; one large step's variance is its second moment less b_d², both from
+    /// the full samples.
+    #[test]
+    fn bootstrap_estimates_take_depth_0_from_its_replicates() {
+        let n = 100u64;
+        let part = BootstrapPart {
+            sums: vec![50.0, 20.0],
+            sums_sq: vec![50.0, 20.0 * 1.5],
+            nonzero: vec![50, 40],
+            large_step_sums_sq: vec![50.0, 36.0],
+            indirect_sum_sq: 0.0,
+            // Replicate means 0.40, 0.44, 0.48, 0.52, 0.56, 0.60, 0.64, 0.68: mean 0.54.
+            direct_sums: (0..8).map(|r| 40.0 + 4.0 * r as f64).collect(),
+            direct_nonzero: 432,
+            paths: n,
+            seconds: 0.0,
+            warnings: Vec::new(),
+        };
+        let b = part.estimates();
+        let d0 = b.estimates[0];
+        assert!((d0.mean - 0.54).abs() < 1e-12, "{d0:?}");
+        assert_eq!((d0.samples, d0.nonzero), (800, 432));
+        let spread: f64 = (0..8).map(|r| (0.40 + 0.04 * r as f64 - 0.54f64).powi(2)).sum();
+        assert!((d0.variance.expect("variance") - spread / 56.0).abs() < 1e-15, "{d0:?}");
+        // A large step's variance from the full samples' own moments (Q_0/N − (Σ B_0/N)²).
+        assert!((d0.large_step_variance.expect("variance") - (0.5 - 0.5 * 0.5)).abs() < 1e-12);
+        let d1 = b.estimates[1];
+        assert!((d1.mean - 0.2).abs() < 1e-12);
+        let s2 = (30.0 - 100.0 * 0.04) / 99.0;
+        assert!((d1.variance.expect("variance") - s2 / 100.0).abs() < 1e-15, "{d1:?}");
+        assert!((d1.large_step_variance.expect("variance") - (0.36 - 0.04)).abs() < 1e-12);
+        assert_eq!(b.found, vec![true, true]);
+    }
 }
