@@ -47,8 +47,10 @@ pub use session::{Session, SessionOutput, Shard};
 
 /// The first bytes of every state file.
 pub const MAGIC: &[u8; 8] = b"PXSTATE\n";
-/// The layout version of the file; a reader refuses any other.
-pub const FORMAT_VERSION: u32 = 1;
+/// The layout version of the file; a reader refuses any other. 2: the MLT bootstrap's per-depth
+/// estimates carry their variances and depth 0's replicates (issue 20, session 10), so a version-1
+/// MLT state would not decode; every older state is refused by version instead of as "damaged".
+pub const FORMAT_VERSION: u32 = 2;
 /// The plexus version that writes state files: a state of another version is refused (its
 /// integrators may sample differently, so resuming would not continue the same render).
 pub const PLEXUS_VERSION: &str = env!("CARGO_PKG_VERSION");
