@@ -235,13 +235,14 @@ impl PathTracer {
                 if let Some(ls) = light.li_from_point(si.p, &point) {
                     if ls.pdf > 0.0 && ls.radiance != Rgb::ZERO {
                         let wi = frame.to_local(ls.wi);
-                        let f = material.eval(wo, wi, TransportMode::Radiance) * wi.z.abs();
+                        // f and the BSDF's density together (they share the half vector, D, Λ).
+                        let (f, pdf_bsdf) = material.eval_pdf(wo, wi, TransportMode::Radiance);
+                        let f = f * wi.z.abs();
                         if f != Rgb::ZERO {
                             let shadow = ls.shadow_ray_from(si.p, si.p_error, si.ng);
                             counters.shadow_rays += 1;
                             if !scene.occluded(&shadow) {
                                 let pdf_light = pmf * ls.pdf;
-                                let pdf_bsdf = material.pdf(wo, wi, TransportMode::Radiance);
                                 let w = self.weight_light_sample(pdf_light, pdf_bsdf);
                                 add(&mut l, beta * f * ls.radiance * (w / pdf_light), counters);
                             }

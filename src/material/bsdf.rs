@@ -55,6 +55,12 @@ impl Bsdf {
         let (wo, wi) = self.oriented(wo, wi);
         self.material.pdf(wo, wi, mode)
     }
+    /// `Material::eval_pdf` under the side rule.
+    #[inline]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> (Rgb, f32) {
+        let (wo, wi) = self.oriented(wo, wi);
+        self.material.eval_pdf(wo, wi, mode)
+    }
     /// `Material::sample` under the side rule.
     pub fn sample(&self, wo: Vec3, u: [f32; BSDF_SAMPLE_DIMS], mode: TransportMode) -> Option<BsdfSample> {
         if self.flips(wo) {

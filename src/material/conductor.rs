@@ -4,19 +4,21 @@
 use glam::Vec3;
 
 use super::fresnel::fresnel_conductor;
-use super::microfacet::{half_vector, Ggx};
+use super::microfacet::{Ggx, GgxReflection};
 use crate::spectrum::Rgb;
 
 /// The microfacet BRDF; zero unless both directions are above the horizon.
 pub fn eval(ggx: &Ggx, eta: Rgb, k: Rgb, wo: Vec3, wi: Vec3) -> Rgb {
-    if wo.z <= 0.0 || wi.z <= 0.0 {
-        return Rgb::ZERO;
-    }
-    let Some(h) = half_vector(wo, wi) else { return Rgb::ZERO };
-    let d = ggx.d(h);
-    if d == 0.0 {
-        return Rgb::ZERO;
-    }
-    let g = ggx.g2(wo, wi);
-    fresnel_conductor(wo.dot(h), eta, k) * (d * g / (4.0 * wo.z * wi.z))
+    ggx.reflection(wo, wi).map_or(Rgb::ZERO, |r| brdf(&r, eta, k, wo))
+}
+
+/// The BRDF and the sampling density at once (they share the half vector, D and Λ(wo)).
+#[inline]
+pub fn eval_pdf(ggx: &Ggx, eta: Rgb, k: Rgb, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+    ggx.reflection(wo, wi).map_or((Rgb::ZERO, 0.0), |r| (brdf(&r, eta, k, wo), r.pdf()))
+}
+
+#[inline]
+fn brdf(r: &GgxReflection, eta: Rgb, k: Rgb, wo: Vec3) -> Rgb {
+    fresnel_conductor(wo.dot(r.h), eta, k) * r.brdf()
 }

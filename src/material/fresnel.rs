@@ -2,7 +2,7 @@
 //! unpolarised light, Snell refraction in the local frame, and the mapping from an artist colour
 //! to a conductor's complex index (Gulbrandsen 2014, "Artist Friendly Metallic Fresnel").
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 use crate::spectrum::Rgb;
 
@@ -55,77 +55,57 @@ pub fn refract_z(w: Vec3, fr: &FresnelDielectric) -> Option<Vec3> {
     Some(Vec3::new(-w.x * inv, -w.y * inv, fr.cos_t))
 }
 
-/// Minimal complex arithmetic for the conductor Fresnel equations.
-#[derive(Clone, Copy, Debug)]
-struct Complex {
-    re: f64,
-    im: f64,
-}
-
-impl Complex {
-    fn new(re: f64, im: f64) -> Complex {
-        Complex { re, im }
-    }
-    fn add(self, o: Complex) -> Complex {
-        Complex::new(self.re + o.re, self.im + o.im)
-    }
-    fn sub(self, o: Complex) -> Complex {
-        Complex::new(self.re - o.re, self.im - o.im)
-    }
-    fn mul(self, o: Complex) -> Complex {
-        Complex::new(self.re * o.re - self.im * o.im, self.re * o.im + self.im * o.re)
-    }
-    fn scale(self, s: f64) -> Complex {
-        Complex::new(self.re * s, self.im * s)
-    }
-    fn norm2(self) -> f64 {
-        self.re * self.re + self.im * self.im
-    }
-    fn div(self, o: Complex) -> Complex {
-        let d = o.norm2();
-        Complex::new((self.re * o.re + self.im * o.im) / d, (self.im * o.re - self.re * o.im) / d)
-    }
-    /// Principal square root (non-negative real part).
-    fn sqrt(self) -> Complex {
-        let m = self.norm2().sqrt();
-        let re = (0.5 * (m + self.re)).max(0.0).sqrt();
-        let im = (0.5 * (m - self.re)).max(0.0).sqrt().copysign(self.im);
-        Complex::new(re, im)
-    }
-}
-
 /// Unpolarised Fresnel reflectance of a conductor with complex index `eta + i k` (relative to the
-/// outside medium) at incident cosine `cos_i` in [0, 1]: the exact equations with a complex
-/// transmitted cosine, evaluated in f64 (one scalar channel).
-pub fn fresnel_conductor_scalar(cos_i: f32, eta: f32, k: f32) -> f32 {
-    let c = f64::from(cos_i.clamp(0.0, 1.0));
-    let n = Complex::new(f64::from(eta), f64::from(k));
-    let sin2_i = (1.0 - c * c).max(0.0);
-    // sin θt = sin θi / n, cos θt = sqrt(1 - sin²θi / n²)
-    let n2 = n.mul(n);
-    let sin2_t = Complex::new(sin2_i, 0.0).div(n2);
-    let cos_t = Complex::new(1.0, 0.0).sub(sin2_t).sqrt();
-    let ci = Complex::new(c, 0.0);
-    let n_cos_t = n.mul(cos_t);
-    let rs = ci.sub(n_cos_t).div(ci.add(n_cos_t));
-    let n_ci = n.scale(c);
-    let rp = n_ci.sub(cos_t).div(n_ci.add(cos_t));
-    let r = 0.5 * (rs.norm2() + rp.norm2());
-    if r.is_finite() {
-        r.clamp(0.0, 1.0) as f32
-    } else {
-        // Only reached for eta = k = 0 at normal incidence (0/0): a perfect reflector by continuity.
-        1.0
-    }
+/// outside medium) at incident cosine `cos_i` in [0, 1], per RGB channel, the three channels at
+/// once (SSE lanes).
+///
+/// The exact equations in real form: with t0 = η² − k² − sin²θ and |a + ib|² = √(t0² + 4η²k²) the
+/// squared modulus of n² − sin²θ, a = Re √(n² − sin²θ) = √((|a+ib|² + t0)/2), and
+/// R_s = (|a+ib|² + cos² − 2a cos) / (|a+ib|² + cos² + 2a cos),
+/// R_p = R_s (cos² |a+ib|² + sin⁴ − 2a cos sin²) / (cos² |a+ib|² + sin⁴ + 2a cos sin²)
+/// (Born and Wolf; pbrt-v3's `FrConductor` form). The step that cancels in f32, |a+ib|² + t0 for
+/// a metal (t0 < 0 when k > η), is taken as 4η²k² / (|a+ib|² − t0) there, and t0 is formed from
+/// cos², so every channel keeps a few ulps of relative accuracy in f32 (`tests_precision`).
+#[inline]
+pub fn fresnel_conductor(cos_i: f32, eta: Rgb, k: Rgb) -> Rgb {
+    let c = cos_i.clamp(0.0, 1.0);
+    let c2 = c * c;
+    let sin2 = (1.0 - c2).max(0.0);
+    let (eta, k) = (Vec3A::from(eta), Vec3A::from(k));
+    let eta2 = eta * eta;
+    let four_eta2_k2 = 4.0 * eta2 * (k * k);
+    // t0 as (η² − k² − 1) + cos²: sin² = 1 − cos² rounds cos² away near grazing incidence.
+    let t0 = (eta2 - k * k - Vec3A::ONE) + Vec3A::splat(c2);
+    let a2b2 = sqrt_lanes(t0 * t0 + four_eta2_k2);
+    let cancel = t0.cmplt(Vec3A::ZERO);
+    let two_a2 = Vec3A::select(cancel, four_eta2_k2 / (a2b2 - t0), a2b2 + t0);
+    let a = sqrt_lanes((0.5 * two_a2).max(Vec3A::ZERO));
+    let t1 = a2b2 + Vec3A::splat(c2);
+    let t2 = (2.0 * c) * a;
+    let rs = (t1 - t2) / (t1 + t2);
+    let t3 = c2 * a2b2 + Vec3A::splat(sin2 * sin2);
+    let t4 = t2 * sin2;
+    // t3 + t4 = 0 only at normal incidence with η = k = 0, where R_p = R_s.
+    let sum = t3 + t4;
+    let rp = rs * Vec3A::select(sum.cmpgt(Vec3A::ZERO), (t3 - t4) / sum, Vec3A::ONE);
+    let r: Vec3A = 0.5 * (rs + rp);
+    // Non-finite only for η = k = 0 at grazing incidence (0/0): a perfect reflector by continuity.
+    let r = Vec3A::select(r.is_finite_mask(), r.clamp(Vec3A::ZERO, Vec3A::ONE), Vec3A::ONE);
+    Rgb::from(r)
 }
 
-/// Conductor Fresnel reflectance per RGB channel.
-pub fn fresnel_conductor(cos_i: f32, eta: Rgb, k: Rgb) -> Rgb {
-    Rgb::new(
-        fresnel_conductor_scalar(cos_i, eta.x, k.x),
-        fresnel_conductor_scalar(cos_i, eta.y, k.y),
-        fresnel_conductor_scalar(cos_i, eta.z, k.z),
-    )
+/// Square root of each lane (glam 0.29's `Vec3A` has none): one `sqrtps` where SSE is there.
+#[inline]
+fn sqrt_lanes(v: Vec3A) -> Vec3A {
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: SSE is part of the x86_64 baseline; `Vec3A` is an `__m128` on this target.
+        unsafe { Vec3A::from(std::arch::x86_64::_mm_sqrt_ps(v.into())) }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        Vec3A::new(v.x.sqrt(), v.y.sqrt(), v.z.sqrt())
+    }
 }
 
 /// Largest reflectivity the colour mapping accepts: at r = 1 the index would be infinite.
@@ -155,6 +135,11 @@ pub fn conductor_index_from_colours(reflectivity: Rgb, edge_tint: Rgb) -> (Rgb, 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `fresnel_conductor` for one channel.
+    fn fresnel_conductor_scalar(cos_i: f32, eta: f32, k: f32) -> f32 {
+        fresnel_conductor(cos_i, Rgb::splat(eta), Rgb::splat(k)).x
+    }
 
     #[test]
     fn dielectric_fresnel_known_values() {

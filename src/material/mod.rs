@@ -17,6 +17,8 @@ mod surface;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
+mod tests_precision;
+#[cfg(test)]
 mod tests_surface;
 #[cfg(test)]
 mod tests_transmission;
@@ -170,6 +172,32 @@ impl Material {
         }
         pdf
     }
+    /// `(eval, pdf)` at once, what a light sample weighted by MIS needs: the two share the half
+    /// vector, D and Λ of a GGX lobe and the lobe probabilities of a mixture, computed once here
+    /// (equal to the separate calls up to rounding; `tests::eval_pdf_is_eval_and_pdf`).
+    #[inline]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> (Rgb, f32) {
+        if !valid_pair(wo, wi) {
+            return (Rgb::ZERO, 0.0);
+        }
+        self.eval_pdf_valid(wo, wi, mode, None)
+    }
+
+    /// `eval_pdf` for a pair that passed `valid_pair`; `probs` are the lobe probabilities at `wo`
+    /// when the caller has them already.
+    #[inline]
+    fn eval_pdf_valid(&self, wo: Vec3, wi: Vec3, mode: TransportMode, probs: Option<[f32; MAX_LOBES]>) -> (Rgb, f32) {
+        match *self {
+            Material::Diffuse { reflectance } => (diffuse::eval(reflectance, wo, wi), diffuse::pdf(wo, wi)),
+            Material::Mirror { .. } | Material::Dielectric { .. } => (Rgb::ZERO, 0.0),
+            Material::RoughConductor { alpha, eta, k } => conductor::eval_pdf(&Ggx::new(alpha), eta, k, wo, wi),
+            Material::RoughPlastic { alpha, plastic } => {
+                let probs = probs.unwrap_or_else(|| plastic::lobe_probabilities(&plastic, wo));
+                plastic::eval_pdf(&Ggx::new(alpha), &plastic, probs, wo, wi)
+            }
+            Material::RoughDielectric { .. } => (self.eval(wo, wi, mode), self.pdf(wo, wi, mode)),
+        }
+    }
     /// Draws `wi` given `wo` from the uniforms `u` (`u[0]` lobe, `u[1]`,`u[2]` direction).
     pub fn sample(&self, wo: Vec3, u: [f32; BSDF_SAMPLE_DIMS], mode: TransportMode) -> Option<BsdfSample> {
         if !wo.is_finite() || wo.z == 0.0 {
@@ -186,12 +214,12 @@ impl Material {
             let eta = self.lobe_eta(t, wo);
             return Some(BsdfSample { wi, f, pdf: probs[t], delta: true, lobe: t as u8, eta });
         }
-        let pdf = self.pdf(wo, wi, mode);
+        let (f, pdf) = self.eval_pdf_valid(wo, wi, mode, Some(probs));
         if !(pdf > 0.0) || !pdf.is_finite() {
             return None;
         }
         let eta = self.lobe_eta(t, wo);
-        Some(BsdfSample { wi, f: self.eval(wo, wi, mode), pdf, delta: false, lobe: t as u8, eta })
+        Some(BsdfSample { wi, f, pdf, delta: false, lobe: t as u8, eta })
     }
     /// Whether every lobe is a delta (mirror, smooth dielectric): no light-source connection can
     /// be made at such a vertex.

@@ -22,7 +22,8 @@
 use glam::Vec3;
 
 use super::fresnel::fresnel_dielectric;
-use super::microfacet::{half_vector, Ggx, ALPHA_MIN};
+use super::microfacet::{Ggx, GgxReflection, ALPHA_MIN};
+use crate::sampling::pdf_cosine_hemisphere;
 use serde::Serialize;
 
 use crate::spectrum::Rgb;
@@ -43,8 +44,47 @@ pub struct Plastic {
     #[serde(skip)]
     fdr: f32,
     /// A rough coating's transmittance 1 − R_α(μ) at μ = i/(COAT_RES − 1); `None`: smooth, 1 − F(μ).
+    /// Shared (`coat_table`): inline, the table made every `Material` ~300 bytes, copied at
+    /// every path vertex whatever the material.
     #[serde(skip)]
-    coat: Option<[f32; COAT_RES]>,
+    coat: Option<&'static CoatTable>,
+}
+
+/// A rough coating's transmittance table and internal reflectance, a pure function of (α, η).
+#[derive(Debug, PartialEq)]
+struct CoatTable {
+    transmittance: [f32; COAT_RES],
+    fdr: f32,
+}
+
+/// The coating table of (α, η), computed once per process for each distinct pair and kept for
+/// the process's lifetime (a scene has a handful of plastics; a table is 260 bytes), so that
+/// `Plastic` stays `Copy` and small.
+fn coat_table(alpha: f32, ior: f32) -> &'static CoatTable {
+    type Tables = Vec<((u32, u32), &'static CoatTable)>;
+    static TABLES: std::sync::Mutex<Tables> = std::sync::Mutex::new(Vec::new());
+    let key = (alpha.to_bits(), ior.to_bits());
+    if let Some(&(_, t)) = TABLES.lock().unwrap_or_else(|e| e.into_inner()).iter().find(|(k, _)| *k == key) {
+        return t;
+    }
+    // Computed outside the lock (tens of milliseconds); two threads racing on one pair both
+    // compute it and one copy is kept.
+    let mut transmittance = [0.0f32; COAT_RES];
+    let mut inside = 0.0f64;
+    for (i, t) in transmittance.iter_mut().enumerate() {
+        let mu = i as f32 / (COAT_RES - 1) as f32;
+        *t = rough_albedos(alpha, ior, mu).1;
+        // F_dr as Mitsuba 3 sums it: 2 × the mean of R(μ)·μ over the table's μ grid.
+        inside += 2.0 * f64::from(mu) * f64::from(rough_albedos(alpha, 1.0 / ior, mu).0);
+    }
+    let fdr = ((inside / COAT_RES as f64) as f32).clamp(0.0, 1.0);
+    let mut tables = TABLES.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(&(_, t)) = tables.iter().find(|(k, _)| *k == key) {
+        return t;
+    }
+    let table: &'static CoatTable = Box::leak(Box::new(CoatTable { transmittance, fdr }));
+    tables.push((key, table));
+    table
 }
 
 /// Entries of a rough coating's transmittance table over cos θ ∈ [0, 1] (Mitsuba 3 uses 64).
@@ -120,22 +160,15 @@ impl Plastic {
                 ..*self
             };
         }
-        let mut coat = [0.0f32; COAT_RES];
-        let mut inside = 0.0f64;
-        for (i, t) in coat.iter_mut().enumerate() {
-            let mu = i as f32 / (COAT_RES - 1) as f32;
-            *t = rough_albedos(alpha, self.ior, mu).1;
-            // F_dr as Mitsuba 3 sums it: 2 × the mean of R(μ)·μ over the table's μ grid.
-            inside += 2.0 * f64::from(mu) * f64::from(rough_albedos(alpha, 1.0 / self.ior, mu).0);
-        }
-        Plastic { fdr: ((inside / COAT_RES as f64) as f32).clamp(0.0, 1.0), coat: Some(coat), ..*self }
+        let table = coat_table(alpha, self.ior);
+        Plastic { fdr: table.fdr, coat: Some(table), ..*self }
     }
     /// The coating's transmittance at cos θ = `mu` > 0: 1 − F(μ) when smooth, else the rough table
     /// (linear interpolation).
     pub fn transmittance(&self, mu: f32) -> f32 {
-        match &self.coat {
+        match self.coat {
             None => 1.0 - fresnel_dielectric(mu, self.ior).reflectance,
-            Some(t) => {
+            Some(CoatTable { transmittance: t, .. }) => {
                 let x = mu.clamp(0.0, 1.0) * (COAT_RES - 1) as f32;
                 let i = (x as usize).min(COAT_RES - 2);
                 let w = x - i as f32;
@@ -176,16 +209,32 @@ pub fn lobe_probabilities(p: &Plastic, wo: Vec3) -> [f32; 2] {
 
 /// The coating's specular term.
 pub fn eval_specular(ggx: &Ggx, p: &Plastic, wo: Vec3, wi: Vec3) -> Rgb {
+    ggx.reflection(wo, wi).map_or(Rgb::ZERO, |r| specular_brdf(p, &r, wo))
+}
+
+#[inline]
+fn specular_brdf(p: &Plastic, r: &GgxReflection, wo: Vec3) -> Rgb {
+    p.specular * (fresnel_dielectric(wo.dot(r.h), p.ior).reflectance * r.brdf())
+}
+
+/// f of both lobes and the mixture density Σ α_t p_t for the selection probabilities `probs`
+/// (`lobe_probabilities(p, wo)`), summed as `Material::pdf` sums them, sharing the specular
+/// lobe's half vector, D and Λ between f and its density.
+#[inline]
+pub fn eval_pdf(ggx: &Ggx, p: &Plastic, probs: [f32; 2], wo: Vec3, wi: Vec3) -> (Rgb, f32) {
     if wo.z <= 0.0 || wi.z <= 0.0 {
-        return Rgb::ZERO;
+        return (Rgb::ZERO, 0.0);
     }
-    let Some(h) = half_vector(wo, wi) else { return Rgb::ZERO };
-    let d = ggx.d(h);
-    if d == 0.0 {
-        return Rgb::ZERO;
+    let (f_specular, pdf_specular) =
+        ggx.reflection(wo, wi).map_or((Rgb::ZERO, 0.0), |r| (specular_brdf(p, &r, wo), r.pdf()));
+    let mut pdf = 0.0;
+    if probs[SPECULAR] > 0.0 {
+        pdf += probs[SPECULAR] * pdf_specular;
     }
-    let f = fresnel_dielectric(wo.dot(h), p.ior).reflectance;
-    p.specular * (f * d * ggx.g2(wo, wi) / (4.0 * wo.z * wi.z))
+    if probs[DIFFUSE] > 0.0 {
+        pdf += probs[DIFFUSE] * pdf_cosine_hemisphere(wi);
+    }
+    (f_specular + eval_diffuse(p, wo, wi), pdf)
 }
 
 /// The base term, attenuated by the coating's transmittance on the way in and out.
