@@ -31,6 +31,8 @@ use serde::{Deserialize, Serialize};
 use super::rng::splitmix64;
 use super::{Rng, UniformSource};
 
+mod burley;
+
 /// Which numbers an image-space integrator's samples read (`sampler` setting).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -109,7 +111,8 @@ impl UniformSource for SampleStream<'_> {
 #[derive(Clone, Debug)]
 pub struct SobolStream {
     key: u64,
-    index: u32,
+    /// The point's index (< 2^16), bit-reversed as `burley::sobol_set` takes it.
+    index_reversed: u32,
     /// The set being read (its number) and its four values.
     set: u32,
     values: [f32; 4],
@@ -128,13 +131,13 @@ impl SobolStream {
     /// `index` < 2^16.
     pub fn new(key: u64, index: u32) -> SobolStream {
         debug_assert!(index < 1 << 16);
-        SobolStream { key, index, set: u32::MAX, values: [0.0; 4], position: 4 }
+        SobolStream { key, index_reversed: index.reverse_bits(), set: u32::MAX, values: [0.0; 4], position: 4 }
     }
 
     fn start_next_set(&mut self) {
         self.set = self.set.wrapping_add(1);
         let seed = splitmix64(self.key ^ self.set as u64) as u32;
-        self.values = sobol_burley::sample_4d(self.index, 0, seed);
+        self.values = burley::sobol_set(self.index_reversed, seed);
         self.position = 0;
     }
 }
