@@ -159,26 +159,36 @@ fn owen_scramble_reversed(mut x: u32, scramble: u32) -> u32 {
     x ^ x.wrapping_mul(0x53a2_2864)
 }
 
-/// Point `index` (< 2^16) of dimensions 0–3 of the sequence seeded by `seed`, given as
-/// `index_reversed` = `index.reverse_bits()` (callers reading many sets of one index reverse it
-/// once). Equal bit for bit to `sobol_burley::sample_4d(index, 0, seed)`.
+/// Sets `seeds[0]` and `seeds[1]` of point `index` (< 2^16), dimensions 0–3, given as
+/// `index_reversed` = `index.reverse_bits()` (a stream reverses its index once). Each is equal bit
+/// for bit to `sobol_burley::sample_4d(index, 0, seed)`.
+///
+/// Two sets per call because one set is a chain of dependent multiplies (about 60 cycles from
+/// seed to floats) with little for the processor to overlap: the second set's chain runs beside
+/// the first, so a pair costs little more than one set's latency. The stream reads its sets in
+/// order and asks for them two at a time.
 #[inline]
-pub(super) fn sobol_set(index_reversed: u32, seed: u32) -> [f32; 4] {
+pub(super) fn sobol_set_pair(index_reversed: u32, seeds: [u32; 2]) -> [[f32; 4]; 2] {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("sse4.1") && std::arch::is_x86_feature_detected!("ssse3") {
         // SAFETY: the CPU has both features the function is compiled for (checked just above).
-        return unsafe { sobol_set_sse41(index_reversed, seed) };
+        return unsafe { sobol_set_pair_sse41(index_reversed, seeds) };
     }
-    sobol_set_from(&SET_CONSTANTS, index_reversed, seed)
+    sobol_set_pair_from(&SET_CONSTANTS, index_reversed, seeds)
 }
 
-/// [`sobol_set`] compiled for SSE4.1 and SSSE3 (x86-64-v2, every x86-64 CPU since about 2008):
-/// the four dimensions' multiplies become one `pmulld` each instead of baseline x86-64's
+/// [`sobol_set_pair`] compiled for SSE4.1 and SSSE3 (x86-64-v2, every x86-64 CPU since about
+/// 2008): the four dimensions' multiplies become one `pmulld` each instead of baseline x86-64's
 /// two-`pmuludq`-and-shuffles emulation, and the bit reversal two `pshufb` nibble lookups.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse4.1,ssse3")]
-fn sobol_set_sse41(index_reversed: u32, seed: u32) -> [f32; 4] {
-    sobol_set_from(&SET_CONSTANTS, index_reversed, seed)
+fn sobol_set_pair_sse41(index_reversed: u32, seeds: [u32; 2]) -> [[f32; 4]; 2] {
+    sobol_set_pair_from(&SET_CONSTANTS, index_reversed, seeds)
+}
+
+#[inline(always)]
+fn sobol_set_pair_from(c: &SetConstants, index_reversed: u32, seeds: [u32; 2]) -> [[f32; 4]; 2] {
+    seeds.map(|seed| sobol_set_from(c, index_reversed, seed))
 }
 
 /// The set under the constants `c` (the tests' wrong variants change one of them).
@@ -243,12 +253,14 @@ mod tests {
         unlike
     }
 
-    /// Every index of 16 seeds gives the crate's bits (4 · 2^20 numbers), both as the renderer
-    /// calls it (the SSE4.1 code on this machine) and compiled for baseline x86-64.
+    /// Every index of 16 seeds gives the crate's bits (4 · 2^20 numbers) in either place of a
+    /// pair, both as the renderer calls it (the SSE4.1 code on this machine) and compiled for
+    /// baseline x86-64.
     #[test]
     fn sets_are_the_crates_bit_for_bit() {
         let seeds = oracle_seeds(12);
-        assert_eq!(sets_unlike_the_crate(sobol_set, &seeds), 0);
+        assert_eq!(sets_unlike_the_crate(|i, seed| sobol_set_pair(i, [seed, !seed])[0], &seeds), 0);
+        assert_eq!(sets_unlike_the_crate(|i, seed| sobol_set_pair(i, [seed ^ 0x5555, seed])[1], &seeds), 0);
         assert_eq!(sets_unlike_the_crate(|i, seed| sobol_set_from(&SET_CONSTANTS, i, seed), &seeds), 0);
     }
 
@@ -271,8 +283,10 @@ mod tests {
     }
 
     /// Nanoseconds per set, this module against `sobol_burley::sample_4d`, as `SobolStream`
-    /// calls them (a splitmix64 seed per set; the index reversal counted here although the stream
-    /// does it once per index). Medians of 15 interleaved rounds of 2^20 sets, in thread CPU time.
+    /// calls them (a splitmix64 seed per set, two sets per call of ours; the index reversal
+    /// counted here although the stream does it once per index), and the same with each pair's
+    /// seeds depending on the previous pair's numbers (latency, as in a path whose next vertex
+    /// waits for its numbers). Medians of 15 interleaved rounds of 2^20 sets, in thread CPU time.
     /// A benchmark, not a test: `cargo test --release --lib sobol_set_cost -- --ignored
     /// --nocapture`.
     #[test]
@@ -286,34 +300,45 @@ mod tests {
             unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) };
             t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
         }
-        fn ns_per_set(set: impl Fn(u32, u32) -> [f32; 4]) -> f64 {
+        /// Per set, `pair` computing sets 2k and 2k + 1 of index k mod 2^16; `chained`: their
+        /// seeds depend on the numbers of the pair before.
+        fn ns_per_set(chained: bool, pair: impl Fn(u32, [u32; 2]) -> [[f32; 4]; 2]) -> f64 {
             let start = thread_cpu_seconds();
             let mut sum = 0u32;
-            for k in 0..SETS {
-                let v = set(black_box(k & 0xFFFF), splitmix64(k as u64) as u32);
-                sum ^= v[0].to_bits() ^ v[1].to_bits() ^ v[2].to_bits() ^ v[3].to_bits();
+            for k in 0..SETS / 2 {
+                let link = if chained { (sum & 1) as u64 } else { 0 };
+                let seeds = [splitmix64(2 * k as u64 ^ link) as u32, splitmix64((2 * k + 1) as u64 ^ link) as u32];
+                for v in pair(black_box(k & 0xFFFF), seeds) {
+                    sum ^= v[0].to_bits() ^ v[1].to_bits() ^ v[2].to_bits() ^ v[3].to_bits();
+                }
             }
             black_box(sum);
             (thread_cpu_seconds() - start) * 1e9 / SETS as f64
         }
-        let median = |mut t: Vec<f64>| {
-            t.sort_by(f64::total_cmp);
-            t[t.len() / 2]
-        };
-        let (mut seed_only, mut crates, mut ours, mut baseline) = (vec![], vec![], vec![], vec![]);
-        for _ in 0..15 {
-            seed_only.push(ns_per_set(|_, seed| [f32::from_bits(seed); 4]));
-            crates.push(ns_per_set(|index, seed| sobol_burley::sample_4d(index, 0, seed)));
-            ours.push(ns_per_set(|index, seed| sobol_set(index.reverse_bits(), seed)));
-            baseline.push(ns_per_set(|index, seed| sobol_set_from(&SET_CONSTANTS, index.reverse_bits(), seed)));
+        let crates = |index, seeds: [u32; 2]| seeds.map(|seed| sobol_burley::sample_4d(index, 0, seed));
+        let ours = |index: u32, seeds| sobol_set_pair(index.reverse_bits(), seeds);
+        let baseline = |index: u32, seeds| sobol_set_pair_from(&SET_CONSTANTS, index.reverse_bits(), seeds);
+        let mut times = [[0.0; 15]; 6];
+        for round in 0..15 {
+            for chained in [false, true] {
+                times[chained as usize][round] = ns_per_set(chained, crates);
+                times[2 + chained as usize][round] = ns_per_set(chained, ours);
+                times[4 + chained as usize][round] = ns_per_set(chained, baseline);
+            }
         }
-        let (s, c, o, b) = (median(seed_only), median(crates), median(ours), median(baseline));
+        let [c, c_chained, o, o_chained, b, b_chained] = times.map(|mut t| {
+            t.sort_by(f64::total_cmp);
+            t[7]
+        });
         println!(
-            "ns per 4D set (thread CPU, median of 15 × 2^20 sets), seed hash included: \
-             sobol_burley::sample_4d {c:.2}, sobol_set {o:.2} (ratio {:.2}×), sobol_set for baseline \
-             x86-64 {b:.2} (ratio {:.2}×); the seed hash alone {s:.2}",
+            "ns per 4D set (thread CPU, median of 15 rounds of 2^20 sets, seed hash included), \
+             independent / chained: sobol_burley::sample_4d {c:.2} / {c_chained:.2}; sobol_set_pair \
+             {o:.2} / {o_chained:.2} (crate ÷ ours {:.2}× / {:.2}×); sobol_set_pair for baseline \
+             x86-64 {b:.2} / {b_chained:.2} ({:.2}× / {:.2}×)",
             c / o,
-            c / b
+            c_chained / o_chained,
+            c / b,
+            c_chained / b_chained
         );
     }
 }
