@@ -316,7 +316,7 @@ mod tests {
             let mut sum = 0u32;
             for k in 0..SETS / 2 {
                 let link = if CHAINED { (sum & 1) as u64 } else { 0 };
-                let seeds = [splitmix64(2 * k as u64 ^ link) as u32, splitmix64((2 * k + 1) as u64 ^ link) as u32];
+                let seeds = [splitmix64((2 * k as u64) ^ link) as u32, splitmix64((2 * k + 1) as u64 ^ link) as u32];
                 for v in pair(black_box(k & 0xFFFF), seeds) {
                     sum ^= v[0].to_bits() ^ v[1].to_bits() ^ v[2].to_bits() ^ v[3].to_bits();
                 }
@@ -327,14 +327,14 @@ mod tests {
         let crates = |index, seeds: [u32; 2]| seeds.map(|seed| sobol_burley::sample_4d(index, 0, seed));
         let ours = |index: u32, seeds| sobol_set_pair(index.reverse_bits(), seeds);
         let baseline = |index: u32, seeds| sobol_set_pair_from(&SET_CONSTANTS, index.reverse_bits(), seeds);
-        let mut times = [[0.0; 15]; 6];
-        for round in 0..15 {
-            times[0][round] = ns_per_set::<false>(crates);
-            times[1][round] = ns_per_set::<true>(crates);
-            times[2][round] = ns_per_set::<false>(ours);
-            times[3][round] = ns_per_set::<true>(ours);
-            times[4][round] = ns_per_set::<false>(baseline);
-            times[5][round] = ns_per_set::<true>(baseline);
+        let mut times: [Vec<f64>; 6] = Default::default();
+        for _ in 0..15 {
+            times[0].push(ns_per_set::<false>(crates));
+            times[1].push(ns_per_set::<true>(crates));
+            times[2].push(ns_per_set::<false>(ours));
+            times[3].push(ns_per_set::<true>(ours));
+            times[4].push(ns_per_set::<false>(baseline));
+            times[5].push(ns_per_set::<true>(baseline));
         }
         let [c, c_chained, o, o_chained, b, b_chained] = times.map(|mut t| {
             t.sort_by(f64::total_cmp);
