@@ -222,7 +222,7 @@ def write_table(path, text):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scenes", default="cornell-box,cornell-glossy,cornell-glass,veach-ajar")
-    ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--spp", type=int, default=64, help="samples per pixel (64: issue 20's budget)")
     ap.add_argument("--renders", type=int, default=8)
     ap.add_argument("--depth", type=int, default=16, help="plexus max_depth (bounces); Mitsuba gets one more")
     ap.add_argument("--first-seed", type=int, default=1, help="seeds are first-seed, first-seed + 1, ...")
