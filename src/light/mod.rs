@@ -233,7 +233,12 @@ impl Light {
             (Light::Area(l), LiPoint::Area(q)) => l.li_from_point(reference, q.as_ref()?),
             (Light::ConstantEnvironment(l), LiPoint::Deferred(u)) => l.sample_li(reference, *u),
             (Light::ImageEnvironment(l), LiPoint::Deferred(u)) => l.sample_li(reference, *u),
-            _ => None,
+            // A point drawn by another kind of light: a caller's bug (pt draws the point and
+            // completes it with the same light): asserted in debug builds, no light sample otherwise.
+            _ => {
+                debug_assert!(false, "li_from_point: the point was drawn by another kind of light");
+                None
+            }
         }
     }
     /// Solid-angle density at `reference` of `sample_li` choosing the point `p_light` with normal
