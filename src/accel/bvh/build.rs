@@ -330,6 +330,9 @@ fn best_split(bins: &Bins, nb: usize, parent_area: f32, centroid_extent: Vec3, p
 /// Reorders `prims` so that those for which `left` (given the primitive's centroid) holds come
 /// first; returns how many they are and the centroid bounds of both sides. The bounds grow in
 /// SIMD vectors (`c.min(bound)`: a NaN centroid leaves the bound as it was, as `Aabb::grow`).
+/// (A branch-free variant, Lomuto's scheme with an unconditional swap, measured 4% slower on the
+/// whole build: below the top levels the primitives arrive spatially ordered, so the side is
+/// predictable, and the two-ended scheme moves only the misplaced ones.)
 fn partition(prims: &mut [BuildPrim], left: impl Fn(Vec3A) -> bool) -> (usize, Aabb, Aabb) {
     let (mut lmin, mut lmax) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
     let (mut rmin, mut rmax) = (lmin, lmax);
@@ -354,34 +357,59 @@ fn partition(prims: &mut [BuildPrim], left: impl Fn(Vec3A) -> bool) -> (usize, A
 /// of by bins: as cheap as binning there, and the best split rather than a bin boundary's.
 const SWEEP_PRIMS: usize = 12;
 
-/// The exact-SAH split of a small range: on each axis, the primitives sorted by centroid and
-/// every one of the `n - 1` cuts evaluated (`C_trav + (A_L P(N_L) + A_R P(N_R)) / A`, as
-/// `best_split`). Leaves `prims` sorted on the best axis and returns the cut and its cost.
+/// The exact-SAH split of a small range: on each axis, the primitives sorted by centroid (stably)
+/// and every one of the `n - 1` cuts evaluated (`C_trav + (A_L P(N_L) + A_R P(N_R)) / A`, as
+/// `best_split`). Leaves `prims` sorted on the best axis and returns the cut and its cost. The
+/// sorts order a small index array by centroids computed once, and the primitives themselves
+/// move once, into the best axis's order (sorting the 32-byte primitives three times, their
+/// centroids recomputed per comparison, was 10% of the build).
 fn sweep_split(prims: &mut [BuildPrim], parent_area: f32, params: &BuildParams) -> Option<(usize, f32)> {
     let n = prims.len();
     debug_assert!((2..=SWEEP_PRIMS).contains(&n));
-    let mut best: Option<(usize, usize, f32)> = None;
+    let mut centroids = [[0.0f32; 3]; SWEEP_PRIMS];
+    for (c, p) in centroids.iter_mut().zip(prims.iter()) {
+        *c = p.centroid().to_array();
+    }
+    let mut best: Option<(usize, f32)> = None;
+    let mut best_order = [0u8; SWEEP_PRIMS];
     let mut right_area = [0.0f32; SWEEP_PRIMS];
     for axis in 0..3 {
-        prims.sort_by(|a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]));
+        // Insertion sort of the indices, stable: an index moves only past strictly greater keys.
+        let mut order = [0u8; SWEEP_PRIMS];
+        for i in 0..n {
+            let key = centroids[i][axis];
+            let mut j = i;
+            while j > 0 && centroids[order[j - 1] as usize][axis].total_cmp(&key).is_gt() {
+                order[j] = order[j - 1];
+                j -= 1;
+            }
+            order[j] = i as u8;
+        }
+        let bounds = |i: usize| {
+            let p = &prims[order[i] as usize];
+            Aabb { min: p.min, max: p.max }
+        };
         let mut acc = Aabb::EMPTY;
         for i in (1..n).rev() {
-            acc = acc.union(&Aabb { min: prims[i].min, max: prims[i].max });
+            acc = acc.union(&bounds(i));
             right_area[i] = acc.surface_area();
         }
         let mut acc = Aabb::EMPTY;
         for i in 1..n {
-            acc = acc.union(&Aabb { min: prims[i - 1].min, max: prims[i - 1].max });
+            acc = acc.union(&bounds(i - 1));
             let cost = params.traversal_cost
                 + (acc.surface_area() * packets(i) + right_area[i] * packets(n - i)) / parent_area;
-            if best.is_none_or(|b| cost < b.2) {
-                best = Some((axis, i, cost));
+            if best.is_none_or(|b| cost < b.1) {
+                best = Some((i, cost));
+                best_order = order;
             }
         }
     }
-    let (axis, cut, cost) = best?;
-    if axis != 2 {
-        prims.sort_by(|a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]));
+    let (cut, cost) = best?;
+    let mut copy = [prims[0]; SWEEP_PRIMS];
+    copy[..n].copy_from_slice(prims);
+    for (p, &k) in prims.iter_mut().zip(&best_order[..n]) {
+        *p = copy[k as usize];
     }
     Some((cut, cost))
 }
