@@ -213,8 +213,6 @@ impl Binner {
     }
 }
 
-type Bins = [[Bin; BINS]; 3];
-
 /// A bin while binning: its primitives' bounds in SIMD vectors (one `minps`/`maxps` each per
 /// update) and their number. Centroid bounds are not binned: the partition computes the two
 /// halves' (`partition`), one update per primitive instead of one per axis.
@@ -225,13 +223,30 @@ struct BinA {
     count: u32,
 }
 
+impl BinA {
+    const EMPTY: BinA = BinA { min: Vec3A::INFINITY, max: Vec3A::NEG_INFINITY, count: 0 };
+    #[inline(always)]
+    fn merge(&self, o: &BinA) -> BinA {
+        BinA { min: self.min.min(o.min), max: self.max.max(o.max), count: self.count + o.count }
+    }
+}
+
+type Bins = [[BinA; BINS]; 3];
+
+/// Half the surface area of the box `[min, max]` (0 for an empty box), in SIMD: the SAH compares
+/// ratios of areas, which the factor 2 leaves exactly as they are.
+#[inline(always)]
+fn half_area(min: Vec3A, max: Vec3A) -> f32 {
+    let e = (max - min).max(Vec3A::ZERO);
+    e.x * e.y + e.y * e.z + e.z * e.x
+}
+
 /// Bins `prims`. Alternate primitives go to two sets of bins, merged at the end: consecutive
 /// primitives are often neighbours (meshes are stored in order) and fall in the same bins, and
 /// with one set each update would wait for the previous one's store to the same bin.
 fn bin_seq(prims: &[BuildPrim], binner: &Binner) -> Bins {
-    let empty = BinA { min: Vec3A::INFINITY, max: Vec3A::NEG_INFINITY, count: 0 };
     let nb = binner.bins;
-    let mut bins = [[[empty; BINS]; 3]; 2];
+    let mut bins = [[[BinA::EMPTY; BINS]; 3]; 2];
     let [even, odd] = &mut bins;
     let pairs = prims.chunks_exact(2);
     for p in pairs.remainder() {
@@ -241,11 +256,10 @@ fn bin_seq(prims: &[BuildPrim], binner: &Binner) -> Bins {
         bin_one(even, &pair[0], binner);
         bin_one(odd, &pair[1], binner);
     }
-    let mut out = [[Bin::EMPTY; BINS]; 3];
-    for (o, (a, b)) in out.iter_mut().zip(bins[0].iter().zip(&bins[1])) {
-        for (o, (a, b)) in o[..nb].iter_mut().zip(a[..nb].iter().zip(&b[..nb])) {
-            let bounds = Aabb { min: a.min.min(b.min).into(), max: a.max.max(b.max).into() };
-            *o = Bin { bounds, centroids: Aabb::EMPTY, count: a.count + b.count };
+    let [mut out, odd] = bins;
+    for (o, b) in out.iter_mut().zip(&odd) {
+        for (o, b) in o[..nb].iter_mut().zip(&b[..nb]) {
+            *o = o.merge(b);
         }
     }
     out
@@ -253,7 +267,7 @@ fn bin_seq(prims: &[BuildPrim], binner: &Binner) -> Bins {
 
 /// Adds `p` to its bin on each axis.
 #[inline(always)]
-fn bin_one(bins: &mut [[BinA; BINS]; 3], p: &BuildPrim, binner: &Binner) {
+fn bin_one(bins: &mut Bins, p: &BuildPrim, binner: &Binner) {
     let (lo, hi) = (Vec3A::from(p.min), Vec3A::from(p.max));
     let k = binner.bins_of((lo + hi) * 0.5);
     for (axis, axis_bins) in bins.iter_mut().enumerate() {
@@ -275,7 +289,7 @@ fn merge_bins(mut a: Bins, b: Bins) -> Bins {
 
 fn bin_all(prims: &[BuildPrim], binner: &Binner) -> Bins {
     if prims.len() > PARALLEL_PRIMS * 4 {
-        prims.par_chunks(CHUNK).map(|c| bin_seq(c, binner)).reduce(|| [[Bin::EMPTY; BINS]; 3], merge_bins)
+        prims.par_chunks(CHUNK).map(|c| bin_seq(c, binner)).reduce(|| [[BinA::EMPTY; BINS]; 3], merge_bins)
     } else {
         bin_seq(prims, binner)
     }
@@ -290,41 +304,43 @@ struct Split {
 
 /// Sweeps the bins of every axis and returns the split with the least SAH cost
 /// `C_trav + (A_L P(N_L) + A_R P(N_R)) / A` in units of one packet test, `P(n) = ceil(n / 4)` the
-/// packets of `n` triangles (the leaf alternative costs `P(N)`).
-fn best_split(bins: &Bins, nb: usize, parent_area: f32, centroid_extent: Vec3, params: &BuildParams) -> Option<Split> {
-    let mut best: Option<Split> = None;
+/// packets of `n` triangles (the leaf alternative costs `P(N)`); `parent_half_area` is `A / 2`, and
+/// the sweep compares the numerators, dividing once at the end.
+fn best_split(
+    bins: &Bins,
+    nb: usize,
+    parent_half_area: f32,
+    centroid_extent: Vec3,
+    params: &BuildParams,
+) -> Option<Split> {
+    let mut best: Option<(usize, usize, f32)> = None;
     for (axis, axis_bins) in bins.iter().enumerate() {
         let axis_bins = &axis_bins[..nb];
         if centroid_extent[axis].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             continue;
         }
-        // right_cost[i] = A_R · N_R for the right side made of bins i..BINS.
+        // right_cost[i] = A_R · P(N_R) for the right side made of bins i..nb.
         let mut right_cost = [0.0f32; BINS];
         let mut right_count = [0u32; BINS];
-        let mut acc = Aabb::EMPTY;
-        let mut count = 0u32;
+        let mut acc = BinA::EMPTY;
         for i in (1..nb).rev() {
-            acc = acc.union(&axis_bins[i].bounds);
-            count += axis_bins[i].count;
-            right_count[i] = count;
-            right_cost[i] = acc.surface_area() * packets(count as usize);
+            acc = acc.merge(&axis_bins[i]);
+            right_count[i] = acc.count;
+            right_cost[i] = half_area(acc.min, acc.max) * packets(acc.count as usize);
         }
-        let mut acc = Aabb::EMPTY;
-        let mut left_count = 0u32;
+        let mut acc = BinA::EMPTY;
         for i in 1..nb {
-            acc = acc.union(&axis_bins[i - 1].bounds);
-            left_count += axis_bins[i - 1].count;
-            if left_count == 0 || right_count[i] == 0 {
+            acc = acc.merge(&axis_bins[i - 1]);
+            if acc.count == 0 || right_count[i] == 0 {
                 continue;
             }
-            let cost = params.traversal_cost
-                + (acc.surface_area() * packets(left_count as usize) + right_cost[i]) / parent_area;
-            if best.as_ref().is_none_or(|b| cost < b.cost) {
-                best = Some(Split { axis, bin: i, cost });
+            let cost = half_area(acc.min, acc.max) * packets(acc.count as usize) + right_cost[i];
+            if best.is_none_or(|b| cost < b.2) {
+                best = Some((axis, i, cost));
             }
         }
     }
-    best
+    best.map(|(axis, bin, cost)| Split { axis, bin, cost: params.traversal_cost + cost / parent_half_area })
 }
 
 /// Reorders `prims` so that those for which `left` (given the primitive's centroid) holds come
@@ -363,7 +379,7 @@ const SWEEP_PRIMS: usize = 12;
 /// sorts order a small index array by centroids computed once, and the primitives themselves
 /// move once, into the best axis's order (sorting the 32-byte primitives three times, their
 /// centroids recomputed per comparison, was 10% of the build).
-fn sweep_split(prims: &mut [BuildPrim], parent_area: f32, params: &BuildParams) -> Option<(usize, f32)> {
+fn sweep_split(prims: &mut [BuildPrim], parent_half_area: f32, params: &BuildParams) -> Option<(usize, f32)> {
     let n = prims.len();
     debug_assert!((2..=SWEEP_PRIMS).contains(&n));
     let mut centroids = [[0.0f32; 3]; SWEEP_PRIMS];
@@ -387,18 +403,19 @@ fn sweep_split(prims: &mut [BuildPrim], parent_area: f32, params: &BuildParams) 
         }
         let bounds = |i: usize| {
             let p = &prims[order[i] as usize];
-            Aabb { min: p.min, max: p.max }
+            (Vec3A::from(p.min), Vec3A::from(p.max))
         };
-        let mut acc = Aabb::EMPTY;
+        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
         for i in (1..n).rev() {
-            acc = acc.union(&bounds(i));
-            right_area[i] = acc.surface_area();
+            let (a, b) = bounds(i);
+            (lo, hi) = (lo.min(a), hi.max(b));
+            right_area[i] = half_area(lo, hi);
         }
-        let mut acc = Aabb::EMPTY;
+        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
         for i in 1..n {
-            acc = acc.union(&bounds(i - 1));
-            let cost = params.traversal_cost
-                + (acc.surface_area() * packets(i) + right_area[i] * packets(n - i)) / parent_area;
+            let (a, b) = bounds(i - 1);
+            (lo, hi) = (lo.min(a), hi.max(b));
+            let cost = half_area(lo, hi) * packets(i) + right_area[i] * packets(n - i);
             if best.is_none_or(|b| cost < b.1) {
                 best = Some((i, cost));
                 best_order = order;
@@ -406,6 +423,7 @@ fn sweep_split(prims: &mut [BuildPrim], parent_area: f32, params: &BuildParams) 
         }
     }
     let (cut, cost) = best?;
+    let cost = params.traversal_cost + cost / parent_half_area;
     let mut copy = [prims[0]; SWEEP_PRIMS];
     copy[..n].copy_from_slice(prims);
     for (p, &k) in prims.iter_mut().zip(&best_order[..n]) {
@@ -438,8 +456,9 @@ fn split(prims: &mut [BuildPrim], r: &Range, params: &BuildParams) -> Option<(Ra
     let c_extent = r.ext.centroids.extent();
     let half = |start: usize, len: usize, ext: Bin| Range { start, len, ext, depth: r.depth + 1, leaf: false };
     if r.depth < SAH_DEPTH && c_extent.max_element() > 0.0 {
+        let parent_half_area = half_area(r.ext.bounds.min.into(), r.ext.bounds.max.into());
         if n <= SWEEP_PRIMS {
-            let (mid, cost) = sweep_split(slice, r.ext.bounds.surface_area(), params)?;
+            let (mid, cost) = sweep_split(slice, parent_half_area, params)?;
             if n <= params.max_leaf && cost >= packets(n) {
                 return None;
             }
@@ -450,16 +469,18 @@ fn split(prims: &mut [BuildPrim], r: &Range, params: &BuildParams) -> Option<(Ra
         let scale = Vec3::select(c_extent.cmpgt(Vec3::ZERO), Vec3::splat(nb as f32) / c_extent, Vec3::ZERO);
         let binner = Binner { origin: r.ext.centroids.min, scale, bins: nb };
         let bins = bin_all(slice, &binner);
-        if let Some(s) = best_split(&bins, nb, r.ext.bounds.surface_area(), c_extent, params) {
+        if let Some(s) = best_split(&bins, nb, parent_half_area, c_extent, params) {
             if n <= params.max_leaf && s.cost >= packets(n) {
                 return None;
             }
             let (mid, lc, rc) = partition(slice, |c| binner.below(c, s.axis, s.bin));
             if mid > 0 && mid < n {
-                let fold = |bins: &[Bin]| bins.iter().fold(Bin::EMPTY, |a, b| a.merge(b));
-                let (mut l, mut rt) = (fold(&bins[s.axis][..s.bin]), fold(&bins[s.axis][s.bin..]));
+                let fold = |bins: &[BinA], centroids: Aabb| {
+                    let b = bins.iter().fold(BinA::EMPTY, |a, b| a.merge(b));
+                    Bin { bounds: Aabb { min: b.min.into(), max: b.max.into() }, centroids, count: b.count }
+                };
+                let (l, rt) = (fold(&bins[s.axis][..s.bin], lc), fold(&bins[s.axis][s.bin..nb], rc));
                 debug_assert_eq!((l.count as usize, rt.count as usize), (mid, n - mid));
-                (l.centroids, rt.centroids) = (lc, rc);
                 return Some((half(r.start, mid, l), half(r.start + mid, n - mid, rt)));
             }
         }
