@@ -174,12 +174,9 @@ impl Bvh {
                         // Fall through to the stack.
                     } else {
                         cur = entry(mask.trailing_zeros() as usize).0;
-                        self.prefetch_entry(cur);
                         mask &= mask - 1;
                         while mask != 0 {
-                            let e = entry(mask.trailing_zeros() as usize);
-                            self.prefetch_entry(e.0);
-                            stack[sp] = MaybeUninit::new(e);
+                            stack[sp] = MaybeUninit::new(entry(mask.trailing_zeros() as usize));
                             sp += 1;
                             mask &= mask - 1;
                         }
@@ -191,7 +188,6 @@ impl Bvh {
                     while mask != 0 {
                         let e = entry(mask.trailing_zeros() as usize);
                         mask &= mask - 1;
-                        self.prefetch_entry(e.0);
                         // Insertion by distance, nearest first.
                         let mut j = k;
                         while j > 0 && hits[j - 1].1 > e.1 {
@@ -227,32 +223,6 @@ impl Bvh {
                 }
             }
             return;
-        }
-    }
-}
-
-impl Bvh {
-    /// Asks the cache for the node or the leaf packets a stack entry refers to, as soon as a node
-    /// visit finds it overlapped: a ray visits most of the slots it overlaps, and bounce rays are
-    /// incoherent, so each visit was a dependent cache miss; asked for together, the misses of a
-    /// node's children overlap. A node is four cache lines; a leaf one or two packets of 144
-    /// bytes (the first four lines are asked for).
-    #[inline(always)]
-    fn prefetch_entry(&self, e: Entry) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let (child, count) = (e as u32 as usize, (e >> 32) as u32);
-            let at: *const u8 = if count == 0 {
-                self.nodes.as_ptr().wrapping_add(child).cast()
-            } else {
-                self.packets.as_ptr().wrapping_add(child).cast()
-            };
-            for line in 0..4 {
-                // SAFETY: SSE is part of the x86_64 baseline; a prefetch never faults, whatever
-                // the address (`wrapping_add` computes it without dereferencing anything).
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(at.wrapping_add(64 * line).cast()) };
-            }
         }
     }
 }

@@ -382,20 +382,22 @@ const SWEEP_PRIMS: usize = 12;
 fn sweep_split(prims: &mut [BuildPrim], parent_half_area: f32, params: &BuildParams) -> Option<(usize, f32)> {
     let n = prims.len();
     debug_assert!((2..=SWEEP_PRIMS).contains(&n));
-    let mut centroids = [[0.0f32; 3]; SWEEP_PRIMS];
-    for (c, p) in centroids.iter_mut().zip(prims.iter()) {
-        *c = p.centroid().to_array();
+    // keys[axis][i]: the centroid of primitive i on `axis`.
+    let mut keys = [[0.0f32; SWEEP_PRIMS]; 3];
+    for (i, p) in prims.iter().enumerate() {
+        for (k, c) in keys.iter_mut().zip(p.centroid().to_array()) {
+            k[i] = c;
+        }
     }
     let mut best: Option<(usize, f32)> = None;
     let mut best_order = [0u8; SWEEP_PRIMS];
     let mut right_area = [0.0f32; SWEEP_PRIMS];
-    for axis in 0..3 {
+    for key in &keys {
         // Insertion sort of the indices, stable: an index moves only past strictly greater keys.
         let mut order = [0u8; SWEEP_PRIMS];
-        for i in 0..n {
-            let key = centroids[i][axis];
+        for (i, k) in key[..n].iter().enumerate() {
             let mut j = i;
-            while j > 0 && centroids[order[j - 1] as usize][axis].total_cmp(&key).is_gt() {
+            while j > 0 && key[order[j - 1] as usize].total_cmp(k).is_gt() {
                 order[j] = order[j - 1];
                 j -= 1;
             }
@@ -412,10 +414,10 @@ fn sweep_split(prims: &mut [BuildPrim], parent_half_area: f32, params: &BuildPar
             right_area[i] = half_area(lo, hi);
         }
         let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
-        for i in 1..n {
+        for (i, &right) in right_area.iter().enumerate().take(n).skip(1) {
             let (a, b) = bounds(i - 1);
             (lo, hi) = (lo.min(a), hi.max(b));
-            let cost = half_area(lo, hi) * packets(i) + right_area[i] * packets(n - i);
+            let cost = half_area(lo, hi) * packets(i) + right * packets(n - i);
             if best.is_none_or(|b| cost < b.1) {
                 best = Some((i, cost));
                 best_order = order;
