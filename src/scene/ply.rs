@@ -3,7 +3,8 @@
 //! The header is parsed here once (`parse_header`) and its element counts are checked against the
 //! file's size before anything is allocated by them. A binary body is then read straight into the
 //! mesh's arrays (`read_binary`): one pass through a fixed-size buffer, with no per-vertex or
-//! per-face allocation. ply-rs, which builds a map of properties per element, held a 10M-triangle
+//! per-face allocation; fixed-size records (vertices, and faces while their count stays the same)
+//! are decoded a buffer at a time on all threads. ply-rs, which builds a map of properties per element, held a 10M-triangle
 //! grid (190 MB) in 6.9 GB and took 27 s to read it (issue 20); it still reads ASCII files, which
 //! are small in practice.
 
