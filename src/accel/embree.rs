@@ -51,6 +51,8 @@ struct ErrorSink {
     bytes: AtomicI64,
     /// The most `bytes` has been: the build's peak, when its temporary arrays were alive.
     peak: AtomicI64,
+    /// Transparent huge pages during a build (`HugePages`).
+    huge_pages: HugePages,
 }
 
 impl ErrorSink {
@@ -95,8 +97,62 @@ unsafe extern "C" fn memory_callback(user_ptr: *mut c_void, bytes: isize, _post:
         let sink = unsafe { &*(user_ptr as *const ErrorSink) };
         let now = sink.bytes.fetch_add(bytes as i64, Ordering::Relaxed) + bytes as i64;
         sink.peak.fetch_max(now, Ordering::Relaxed);
+        sink.huge_pages.allocation(bytes);
     }
     true
+}
+
+/// Whether the kernel may back the process's new memory with transparent huge pages while Embree
+/// builds. Embree asks for them (`madvise(MADV_HUGEPAGE)`) for every array it allocates; the
+/// first touch of a huge page zeroes 2 MB at once, which in a virtual machine whose free memory
+/// the host has reclaimed costs about 3 s per GB against 0.7 s in 4 kB pages (measured here,
+/// docs/bench.md "Session 11"). The build's largest temporary, its primitive array (32 bytes a
+/// triangle, filled once before the tree is built), gains nothing from huge pages: while a
+/// commit is armed, an allocation of at least `threshold` bytes turns them off for the process
+/// (`PR_SET_THP_DISABLE`, which the kernel checks at each page fault), and the next smaller one
+/// (the tree's nodes and leaves, which rays traverse and which keep their huge pages) turns them
+/// back on. The commit turns them back on in any case when it returns. Only the speed of page
+/// faults depends on this; what Embree builds is the same.
+#[derive(Default)]
+struct HugePages {
+    threshold: AtomicI64,
+    disabled: std::sync::atomic::AtomicBool,
+}
+
+impl HugePages {
+    fn arm(&self, threshold: i64) {
+        self.threshold.store(threshold, Ordering::Relaxed);
+    }
+
+    fn allocation(&self, bytes: isize) {
+        let threshold = self.threshold.load(Ordering::Relaxed);
+        if threshold <= 0 || bytes <= 0 {
+            return;
+        }
+        let disable = bytes as i64 >= threshold;
+        if self.disabled.swap(disable, Ordering::Relaxed) != disable {
+            set_huge_pages(!disable);
+        }
+    }
+
+    fn disarm(&self) {
+        self.threshold.store(0, Ordering::Relaxed);
+        if self.disabled.swap(false, Ordering::Relaxed) {
+            set_huge_pages(true);
+        }
+    }
+}
+
+/// Lets (or stops) the kernel back this process's new memory with transparent huge pages where
+/// they were asked for. A failure (an old kernel) changes only the speed of page faults.
+fn set_huge_pages(allowed: bool) {
+    #[cfg(target_os = "linux")]
+    // SAFETY: PR_SET_THP_DISABLE takes one integer argument and touches no memory of ours.
+    unsafe {
+        libc::prctl(libc::PR_SET_THP_DISABLE, libc::c_ulong::from(!allowed), 0, 0, 0);
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = allowed;
 }
 
 /// An Embree device with its error sink. Dropping it releases the device.
@@ -296,13 +352,24 @@ impl SceneBuilder {
 
     /// Builds the BVH and freezes the scene.
     pub fn commit(self) -> Result<CommittedScene, AccelError> {
+        let triangles: usize = self.meshes.iter().map(|m| m.triangle_count()).sum();
+        let sink = &self.device.sink;
+        if triangles >= HUGE_PAGE_FREE_BUILD {
+            // The primitive array: 32 bytes a triangle (Embree's `PrimRef`), at least.
+            sink.huge_pages.arm(32 * triangles as i64);
+        }
         // SAFETY: the scene is live and only this thread can reach it (we own the builder).
         unsafe { sys::rtcCommitScene(self.scene.0) };
+        sink.huge_pages.disarm();
         self.device.check("committing the scene")?;
         let SceneBuilder { scene, device, meshes } = self;
         Ok(CommittedScene { scene, device, meshes })
     }
 }
+
+/// Scenes of at least this many triangles build their primitive array without huge pages
+/// (`HugePages`); below it the array is small enough that its page faults do not matter.
+const HUGE_PAGE_FREE_BUILD: usize = 1 << 20;
 
 /// The layouts `write_ray` and `intersect` write row by row.
 const _: () = {
@@ -606,6 +673,34 @@ mod tests {
         assert!(err.contains("creating a bogus geometry") && err.contains("invalid geometry type"), "{err}");
         // The sink was drained: the next check is clean.
         assert!(device.check("nothing").is_ok());
+    }
+
+    /// The huge-page switch of a large build (`HugePages`): off for an allocation of at least the
+    /// threshold (the primitive array), on again for the next smaller one (the tree's blocks) and
+    /// when the commit disarms it; untouched when not armed. Read back with PR_GET_THP_DISABLE.
+    #[test]
+    #[cfg(target_os = "linux")]
+    fn huge_pages_are_off_only_for_the_build_primitive_array() {
+        // SAFETY: PR_GET_THP_DISABLE takes no argument and touches no memory of ours.
+        let disabled = || unsafe { libc::prctl(libc::PR_GET_THP_DISABLE, 0, 0, 0, 0) } == 1;
+        let h = HugePages::default();
+        h.allocation(1 << 30);
+        assert!(!disabled(), "not armed: no change");
+        h.arm(1000);
+        h.allocation(999);
+        assert!(!disabled(), "below the threshold");
+        h.allocation(1000);
+        assert!(disabled(), "the primitive array");
+        h.allocation(-1000);
+        assert!(disabled(), "a release changes nothing");
+        h.allocation(64);
+        assert!(!disabled(), "the tree's blocks");
+        h.allocation(5000);
+        assert!(disabled());
+        h.disarm();
+        assert!(!disabled(), "the commit's end");
+        h.allocation(5000);
+        assert!(!disabled(), "disarmed");
     }
 
     #[test]

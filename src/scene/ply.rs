@@ -3,13 +3,16 @@
 //! The header is parsed here once (`parse_header`) and its element counts are checked against the
 //! file's size before anything is allocated by them. A binary body is then read straight into the
 //! mesh's arrays (`read_binary`): one pass through a fixed-size buffer, with no per-vertex or
-//! per-face allocation. ply-rs, which builds a map of properties per element, held a 10M-triangle
+//! per-face allocation; fixed-size records (vertices, and faces while their count stays the same)
+//! are decoded a buffer at a time on all threads. ply-rs, which builds a map of properties per element, held a 10M-triangle
 //! grid (190 MB) in 6.9 GB and took 27 s to read it (issue 20); it still reads ASCII files, which
 //! are small in practice.
 
 use std::io::{BufRead, Read};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use glam::{Vec2, Vec3};
+use rayon::prelude::*;
 
 use super::mesh_io::RawMesh;
 
@@ -85,6 +88,27 @@ impl Scalar {
         }
     }
 
+    /// Decodes `b` (exactly `self.size()` bytes) as an integer that fits a u32 (a count or a
+    /// vertex index): `None` for a negative value or a float type.
+    #[inline]
+    fn decode_index(self, b: &[u8], big_endian: bool) -> Option<u32> {
+        macro_rules! int {
+            ($t:ty) => {{
+                let a = b.try_into().ok()?;
+                u32::try_from(if big_endian { <$t>::from_be_bytes(a) } else { <$t>::from_le_bytes(a) }).ok()
+            }};
+        }
+        match self {
+            Scalar::I8 => u32::try_from(b[0] as i8).ok(),
+            Scalar::U8 => Some(b[0] as u32),
+            Scalar::I16 => int!(i16),
+            Scalar::U16 => int!(u16),
+            Scalar::I32 => int!(i32),
+            Scalar::U32 => int!(u32),
+            Scalar::F32 | Scalar::F64 => None,
+        }
+    }
+
     /// Decodes `b` (exactly `self.size()` bytes).
     #[inline]
     fn decode(self, b: &[u8], big_endian: bool) -> f64 {
@@ -138,6 +162,8 @@ impl Element {
 pub(super) struct Header {
     pub format: Format,
     elements: Vec<Element>,
+    /// Bytes after the header (the body's size, by the file's size).
+    body_bytes: u64,
 }
 
 /// Reads the header from `reader` (left at the first byte of the body) and checks its element
@@ -228,7 +254,7 @@ pub(super) fn parse_header<R: BufRead>(reader: &mut R, size: u64) -> Result<Head
             ));
         }
     }
-    Ok(Header { format, elements })
+    Ok(Header { format, elements, body_bytes: body })
 }
 
 /// The body, read through one reusable buffer.
@@ -237,9 +263,15 @@ struct Body<R> {
     buf: Vec<u8>,
     pos: usize,
     end: usize,
+    /// The most bytes a batch of fixed-size records takes at once (the buffer's usual size).
+    chunk: usize,
 }
 
 impl<R: Read> Body<R> {
+    fn new(inner: R, chunk: usize) -> Body<R> {
+        Body { inner, buf: vec![0; chunk], pos: 0, end: 0, chunk }
+    }
+
     /// The next `n` bytes, or `None` at the end of the file.
     #[inline]
     fn take(&mut self, n: usize) -> Result<Option<&[u8]>, String> {
@@ -251,12 +283,22 @@ impl<R: Read> Body<R> {
         Ok(Some(s))
     }
 
-    /// Bytes read but not yet taken (after a `take` that met the end of the file: all that is left).
-    fn available(&self) -> usize {
-        self.end - self.pos
+    /// The next `n` bytes without taking them (fewer only at the end of the file); `consume`
+    /// takes what was used.
+    fn peek(&mut self, n: usize) -> Result<&[u8], String> {
+        if self.end - self.pos < n {
+            self.refill(n)?;
+        }
+        Ok(&self.buf[self.pos..self.end.min(self.pos + n)])
     }
 
-    /// Makes at least `n` bytes available; false at the end of the file.
+    fn consume(&mut self, n: usize) {
+        debug_assert!(n <= self.end - self.pos, "consume past what was peeked");
+        self.pos += n;
+    }
+
+    /// Makes at least `n` bytes available; false at the end of the file (what is left is then
+    /// available).
     #[cold]
     fn refill(&mut self, n: usize) -> Result<bool, String> {
         self.buf.copy_within(self.pos..self.end, 0);
@@ -324,6 +366,12 @@ impl VertexLayout {
 /// skipped. The arrays are allocated once by the header's counts, which `parse_header` has bounded
 /// by the file's size.
 pub(super) fn read_binary<R: Read>(header: &Header, reader: R) -> Result<RawMesh, String> {
+    read_binary_in_chunks(header, reader, CHUNK)
+}
+
+/// `read_binary` with batches of at most `chunk` bytes (small in tests, to cross batch
+/// boundaries).
+fn read_binary_in_chunks<R: Read>(header: &Header, reader: R, chunk: usize) -> Result<RawMesh, String> {
     let big_endian = header.format == Format::BinaryBigEndian;
     let vertex = header.elements.iter().position(|e| e.name == "vertex").ok_or("invalid PLY: no 'vertex' element")?;
     let face = header.elements.iter().position(|e| e.name == "face").ok_or("invalid PLY: no 'face' element")?;
@@ -338,14 +386,14 @@ pub(super) fn read_binary<R: Read>(header: &Header, reader: R) -> Result<RawMesh
         _ => return Err("invalid PLY: 'vertex_indices' is not an integer list".into()),
     }
 
-    let mut body = Body { inner: reader, buf: vec![0; CHUNK], pos: 0, end: 0 };
+    let mut body = Body::new(reader, chunk);
     let mut out = RawMesh::default();
     let last = vertex.max(face);
     for (k, e) in header.elements.iter().enumerate().take(last + 1) {
         if k == vertex {
             read_vertices(&mut body, e, &layout, big_endian, &mut out)?;
         } else if k == face {
-            read_faces(&mut body, e, list, big_endian, &mut out.indices)?;
+            read_faces(&mut body, e, list, big_endian, header.body_bytes, &mut out.indices)?;
         } else {
             for i in 0..e.count {
                 skip_element(&mut body, e, big_endian)?.ok_or_else(|| ends_inside(e, i))?;
@@ -398,25 +446,25 @@ fn read_vertices<R: Read>(
         let normal = layout.normal.map(vec3);
         let uv = layout.uv.map(|[a, b]| [field(a), field(b)]);
         let get = |record: &[u8], (at, s): (usize, Scalar)| s.decode_f32(&record[at..at + s.size()], big_endian);
-        let per_batch = (CHUNK / stride).max(1);
+        let per_batch = (body.chunk / stride).max(1);
         let mut done = 0;
         while done < n {
+            // A batch of records, decoded on all threads straight into the arrays (rayon's
+            // indexed `par_extend` writes into the reserved capacity, in order).
             let k = (n - done).min(per_batch);
-            let Some(bytes) = body.take(k * stride)? else {
-                return Err(ends_inside(e, (done + body.available() / stride) as u64));
-            };
-            for record in bytes.chunks_exact(stride) {
-                let [x, y, z] = position.map(|f| get(record, f));
-                out.positions.push(Vec3::new(x, y, z));
-                if let (Some(ns), Some(f)) = (normals.as_mut(), normal) {
-                    let [x, y, z] = f.map(|f| get(record, f));
-                    ns.push(Vec3::new(x, y, z));
-                }
-                if let (Some(us), Some(f)) = (uvs.as_mut(), uv) {
-                    let [u, v] = f.map(|f| get(record, f));
-                    us.push(Vec2::new(u, v));
-                }
+            let bytes = body.peek(k * stride)?;
+            if bytes.len() < k * stride {
+                return Err(ends_inside(e, (done + bytes.len() / stride) as u64));
             }
+            let records = || bytes.par_chunks_exact(stride);
+            out.positions.par_extend(records().map(|r| Vec3::from_array(position.map(|f| get(r, f)))));
+            if let (Some(ns), Some(f)) = (normals.as_mut(), normal) {
+                ns.par_extend(records().map(|r| Vec3::from_array(f.map(|f| get(r, f)))));
+            }
+            if let (Some(us), Some(f)) = (uvs.as_mut(), uv) {
+                us.par_extend(records().map(|r| Vec2::from_array(f.map(|f| get(r, f)))));
+            }
+            body.consume(k * stride);
             done += k;
         }
     } else {
@@ -439,65 +487,195 @@ fn read_vertices<R: Read>(
     Ok(())
 }
 
+/// A face record of fixed size: every property a scalar but the index list, whose count is
+/// `corners` (the first face's). Faces of a file usually all have the same count, so their
+/// records can be read in batches like the vertices'.
+struct FixedFaces {
+    stride: usize,
+    /// Byte offset and type of the list's count, then of its first item.
+    count_at: usize,
+    count: Scalar,
+    items_at: usize,
+    item: Scalar,
+    corners: usize,
+}
+
+impl FixedFaces {
+    /// The layout of `e`'s records if every face has the first face's count, which `first`
+    /// (the body's next bytes) holds; `None` when `e` has another list, or that count is not a
+    /// small polygon's.
+    fn new(e: &Element, list: usize, first: &[u8], big_endian: bool) -> Option<FixedFaces> {
+        let mut at = 0;
+        for (j, p) in e.properties.iter().enumerate() {
+            match p.kind {
+                Kind::Scalar(s) => at += s.size(),
+                Kind::List { .. } if j != list => return None,
+                Kind::List { .. } => {}
+            }
+        }
+        let Kind::List { count, item } = e.properties[list].kind else { return None };
+        let count_at: usize = e.properties[..list]
+            .iter()
+            .map(|p| match p.kind {
+                Kind::Scalar(s) | Kind::List { count: s, .. } => s.size(),
+            })
+            .sum();
+        let corners = count.decode_index(first.get(count_at..count_at + count.size())?, big_endian)?;
+        if !(3..=64).contains(&corners) {
+            return None;
+        }
+        let corners = corners as usize;
+        let items_at = count_at + count.size();
+        Some(FixedFaces { stride: at + count.size() + corners * item.size(), count_at, count, items_at, item, corners })
+    }
+
+    /// The record's corners as vertex indices, or `None` when the record is not of this layout
+    /// (another count) or an index is negative: the general reader then names the culprit.
+    #[inline]
+    fn corner(&self, record: &[u8], k: usize, big_endian: bool) -> Option<u32> {
+        let at = self.items_at + k * self.item.size();
+        self.item.decode_index(&record[at..at + self.item.size()], big_endian)
+    }
+
+    #[inline]
+    fn fits(&self, record: &[u8], big_endian: bool) -> bool {
+        let c = &record[self.count_at..self.count_at + self.count.size()];
+        self.count.decode_index(c, big_endian) == Some(self.corners as u32)
+    }
+}
+
 /// Reads the face element, the `list`-th property being the vertex indices, into triangles
-/// (polygons split into fans).
+/// (polygons split into fans). `body_bytes` (the body's size) bounds the triangles reserved up
+/// front, whatever the header's count says.
+///
+/// Faces are read in batches of fixed-size records (`FixedFaces`, the count of the batch's first
+/// face), decoded on all threads, while every record of a batch has that layout; a batch with
+/// another count, a negative index or the end of the file in it is read again face by face by
+/// `read_face`, which names the culprit, and the batches resume after it.
 fn read_faces<R: Read>(
     body: &mut Body<R>,
     e: &Element,
     list: usize,
     big_endian: bool,
+    body_bytes: u64,
     indices: &mut Vec<[u32; 3]>,
 ) -> Result<(), String> {
-    *indices = Vec::with_capacity(e.count as usize);
+    let Kind::List { count, item } = e.properties[list].kind else { unreachable!("read_binary checked the list") };
+    let smallest_triangle = count.size() + 3 * item.size();
+    *indices = Vec::with_capacity(e.count.min(body_bytes / smallest_triangle as u64) as usize);
+    let per_general_batch = (body.chunk / smallest_triangle).max(1) as u64;
     let mut fan: Vec<u32> = Vec::new();
-    for f in 0..e.count {
-        let ends = || ends_inside(e, f);
-        for (j, p) in e.properties.iter().enumerate() {
-            match p.kind {
-                Kind::Scalar(s) => {
-                    body.take(s.size())?.ok_or_else(ends)?;
+    let mut f = 0;
+    while f < e.count {
+        let next = body.peek(body.chunk)?;
+        if let Some(fixed) = FixedFaces::new(e, list, next, big_endian) {
+            f += read_fixed_faces(body, e.count - f, &fixed, big_endian, indices)?;
+        }
+        let end = (f + per_general_batch).min(e.count);
+        while f < end {
+            read_face(body, e, f, list, big_endian, &mut fan, indices)?;
+            f += 1;
+        }
+    }
+    Ok(())
+}
+
+/// Reads up to `left` faces of `fixed`'s layout in batches, decoded on all threads straight into
+/// `indices`, while every record of a batch has that layout; returns how many it read.
+fn read_fixed_faces<R: Read>(
+    body: &mut Body<R>,
+    left: u64,
+    fixed: &FixedFaces,
+    big_endian: bool,
+    indices: &mut Vec<[u32; 3]>,
+) -> Result<u64, String> {
+    let per_batch = (body.chunk / fixed.stride).max(1) as u64;
+    let mut done = 0;
+    while done < left {
+        let k = (left - done).min(per_batch) as usize;
+        let bytes = body.peek(k * fixed.stride)?;
+        if bytes.len() < k * fixed.stride {
+            break;
+        }
+        let start = indices.len();
+        let odd = AtomicBool::new(false);
+        let records = bytes.par_chunks_exact(fixed.stride);
+        // A record of another layout is noted in `odd` and read as zeros; the batch is dropped.
+        let corner = |r: &[u8], k: usize| {
+            let v = fixed.corner(r, k, big_endian).filter(|_| k > 0 || fixed.fits(r, big_endian));
+            v.unwrap_or_else(|| {
+                odd.store(true, Ordering::Relaxed);
+                0
+            })
+        };
+        if fixed.corners == 3 {
+            indices.par_extend(records.map(|r| [corner(r, 0), corner(r, 1), corner(r, 2)]));
+        } else {
+            indices.par_extend(records.flat_map_iter(|r| {
+                let first = corner(r, 0);
+                (1..fixed.corners - 1).map(move |t| [first, corner(r, t), corner(r, t + 1)])
+            }));
+        }
+        if odd.load(Ordering::Relaxed) {
+            indices.truncate(start);
+            break;
+        }
+        body.consume(k * fixed.stride);
+        done += k as u64;
+    }
+    Ok(done)
+}
+
+/// Reads face `f` (any layout) into `indices`, naming the face in any error.
+fn read_face<R: Read>(
+    body: &mut Body<R>,
+    e: &Element,
+    f: u64,
+    list: usize,
+    big_endian: bool,
+    fan: &mut Vec<u32>,
+    indices: &mut Vec<[u32; 3]>,
+) -> Result<(), String> {
+    let ends = || ends_inside(e, f);
+    for (j, p) in e.properties.iter().enumerate() {
+        match p.kind {
+            Kind::Scalar(s) => {
+                body.take(s.size())?.ok_or_else(ends)?;
+            }
+            Kind::List { count, item } => {
+                let c = count.decode(body.take(count.size())?.ok_or_else(ends)?, big_endian);
+                if !(c >= 0.0) {
+                    return Err(format!("face {f}: list '{}' has a negative length {c}", p.name));
                 }
-                Kind::List { count, item } => {
-                    let c = count.decode(body.take(count.size())?.ok_or_else(ends)?, big_endian);
-                    if !(c >= 0.0) {
-                        return Err(format!("face {f}: list '{}' has a negative length {c}", p.name));
-                    }
-                    if j == list && c < 3.0 {
-                        return Err(format!("face {f}: expected at least 3 vertices, got {c}"));
-                    }
-                    let size = item.size();
-                    if c * size as f64 > CHUNK as f64 {
-                        // A list longer than the buffer (real faces have a handful of vertices):
-                        // read item by item, so that a lying count meets the end of the file
-                        // rather than an allocation.
-                        if j == list {
-                            fan.clear();
-                        }
-                        for _ in 0..c as u64 {
-                            let b = body.take(size)?.ok_or_else(ends)?;
-                            if j == list {
-                                fan.push(vertex_index(f, item.decode(b, big_endian))?);
-                            }
-                        }
-                    } else {
-                        let items = body.take(c as usize * size)?.ok_or_else(ends)?;
-                        if j != list {
-                            continue;
-                        }
-                        if c == 3.0 {
-                            let v =
-                                |k: usize| vertex_index(f, item.decode(&items[k * size..(k + 1) * size], big_endian));
-                            indices.push([v(0)?, v(1)?, v(2)?]);
-                            continue;
-                        }
+                if j == list && c < 3.0 {
+                    return Err(format!("face {f}: expected at least 3 vertices, got {c}"));
+                }
+                let size = item.size();
+                if c * size as f64 > CHUNK as f64 {
+                    // A list longer than the buffer (real faces have a handful of vertices):
+                    // read item by item, so that a lying count meets the end of the file
+                    // rather than an allocation.
+                    if j == list {
                         fan.clear();
-                        for b in items.chunks_exact(size) {
+                    }
+                    for _ in 0..c as u64 {
+                        let b = body.take(size)?.ok_or_else(ends)?;
+                        if j == list {
                             fan.push(vertex_index(f, item.decode(b, big_endian))?);
                         }
                     }
-                    for t in 1..fan.len() - 1 {
-                        indices.push([fan[0], fan[t], fan[t + 1]]);
+                } else {
+                    let items = body.take(c as usize * size)?.ok_or_else(ends)?;
+                    if j != list {
+                        continue;
                     }
+                    fan.clear();
+                    for b in items.chunks_exact(size) {
+                        fan.push(vertex_index(f, item.decode(b, big_endian))?);
+                    }
+                }
+                for t in 1..fan.len() - 1 {
+                    indices.push([fan[0], fan[t], fan[t + 1]]);
                 }
             }
         }
@@ -624,6 +802,82 @@ mod tests {
             assert_eq!(m.normals.as_deref().map(|n| n[3]), Some(Vec3::Z));
             assert_eq!(m.uvs.as_deref().map(|u| u[1]), Some(Vec2::new(0.25, 0.5)));
             assert!(m.positions.capacity() > m.positions.len(), "room for the padding vertex");
+        }
+    }
+
+    /// A little-endian PLY of `nv` vertices (vertex k at (k, 2k, -k)) and `faces`, each face's
+    /// record a flag byte, the index list and a float (fixed-size records around the list).
+    fn polygons(nv: usize, faces: &[Vec<i32>]) -> Vec<u8> {
+        let vp = "property float x\nproperty float y\nproperty float z\n";
+        let fp = "property uchar flags\nproperty list uchar int vertex_indices\nproperty float quality\n";
+        let mut b = header("binary_little_endian", vp, fp, nv, faces.len());
+        for k in 0..nv {
+            for v in [k as f32, 2.0 * k as f32, -(k as f32)] {
+                b.extend(v.to_le_bytes());
+            }
+        }
+        for f in faces {
+            b.push(1);
+            b.push(f.len() as u8);
+            f.iter().for_each(|i| b.extend(i.to_le_bytes()));
+            b.extend(0.5f32.to_le_bytes());
+        }
+        b
+    }
+
+    fn read_in_chunks(bytes: &[u8], chunk: usize) -> Result<RawMesh, String> {
+        let mut r = bytes;
+        let header = parse_header(&mut r, bytes.len() as u64)?;
+        read_binary_in_chunks(&header, r, chunk)
+    }
+
+    /// The batched readers (vertex records, and face records while their count stays the same)
+    /// against the face-by-face reader's results and errors, across batch boundaries: batches of
+    /// 40 bytes hold three vertices or two triangle records (18 bytes each), so every kind of face
+    /// meets a boundary somewhere. Wrong variants this catches: a batch with a quad among
+    /// triangles kept (its corners read as a triangle), a dropped batch not re-read, an error naming
+    /// the batch's first face instead of the culprit.
+    #[test]
+    fn batched_records_read_like_single_faces_across_batch_boundaries() {
+        let tri = |k: i32| vec![k % 9, (k + 1) % 9, (k + 2) % 9];
+        let mut faces: Vec<Vec<i32>> = (0..7).map(tri).collect();
+        faces.push(vec![0, 1, 2, 3]);
+        faces.extend((0..5).map(tri));
+        faces.extend([vec![4, 5, 6, 7, 8], vec![1, 2, 3, 4, 5]]);
+        faces.extend((0..4).map(tri));
+        let expected: Vec<[u32; 3]> = faces
+            .iter()
+            .flat_map(|f| (1..f.len() - 1).map(move |t| [f[0], f[t], f[t + 1]].map(|i| i as u32)))
+            .collect();
+        let bytes = polygons(9, &faces);
+        for chunk in [1, 20, 40, 64, 1 << 20] {
+            let m = read_in_chunks(&bytes, chunk).expect("valid");
+            assert_eq!(m.indices, expected, "chunk {chunk}");
+            assert_eq!(m.positions.len(), 9);
+            assert_eq!(m.positions[7], Vec3::new(7.0, 14.0, -7.0), "chunk {chunk}");
+        }
+        // All quads: read in batches too, as fans.
+        let quads: Vec<Vec<i32>> = (0..6).map(|k| vec![k, k + 1, k + 2, k + 3]).collect();
+        let m = read_in_chunks(&polygons(9, &quads), 40).expect("quads");
+        assert_eq!(m.indices.len(), 12);
+        assert_eq!(m.indices[10..], [[5, 6, 7], [5, 7, 8]]);
+
+        // Errors name the culprit face, wherever it is in its batch.
+        for chunk in [40, 64, 1 << 20] {
+            let mut bad = faces.clone();
+            bad[10][1] = -3;
+            let e = read_in_chunks(&polygons(9, &bad), chunk).expect_err("negative");
+            assert!(e.contains("face 10: vertex index -3 is negative"), "chunk {chunk}: {e}");
+            let mut two = faces.clone();
+            two[14] = vec![1, 2];
+            let e = read_in_chunks(&polygons(9, &two), chunk).expect_err("two");
+            assert!(e.contains("face 14: expected at least 3 vertices"), "chunk {chunk}: {e}");
+            // Truncated inside face 16's index list (faces 17 and 18 are 18-byte triangles). A
+            // body cut inside the vertices is refused by the header's bound before any batch.
+            let ok = polygons(9, &faces);
+            let face_16_end = ok.len() - 2 * 18;
+            let e = read_in_chunks(&ok[..face_16_end - 5], chunk).expect_err("truncated");
+            assert!(e.contains("ends inside face 16 of 19"), "chunk {chunk}: {e}");
         }
     }
 
