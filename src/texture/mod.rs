@@ -58,23 +58,14 @@ impl TexelImage {
         self.texels.len() * std::mem::size_of::<Rgb>()
     }
 
-    #[inline]
-    fn texel(&self, i: i64, j: i64) -> Rgb {
-        let x = i.rem_euclid(self.width as i64) as usize;
-        let y = j.rem_euclid(self.height as i64) as usize;
-        self.texels[y * self.width + x]
-    }
-
     /// Bilinear lookup with wrap-around at texture-space point (s, t), t = 0 at the top row.
     pub fn bilinear(&self, s: f32, t: f32) -> Rgb {
-        // Reduce to one period first so that large uvs keep their fractional precision.
-        let x = f64::from(s).rem_euclid(1.0) * self.width as f64 - 0.5;
-        let y = f64::from(t).rem_euclid(1.0) * self.height as f64 - 0.5;
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
-        let (i, j) = (x0 as i64, y0 as i64);
-        let top = self.texel(i, j) * (1.0 - fx) + self.texel(i + 1, j) * fx;
-        let bottom = self.texel(i, j + 1) * (1.0 - fx) + self.texel(i + 1, j + 1) * fx;
+        let (i0, i1, fx) = wrapped_neighbours(s, self.width);
+        let (j0, j1, fy) = wrapped_neighbours(t, self.height);
+        let (row0, row1) = (j0 * self.width, j1 * self.width);
+        let texel = |k: usize| self.texels[k];
+        let top = texel(row0 + i0) * (1.0 - fx) + texel(row0 + i1) * fx;
+        let bottom = texel(row1 + i0) * (1.0 - fx) + texel(row1 + i1) * fx;
         top * (1.0 - fy) + bottom * fy
     }
 
@@ -83,6 +74,41 @@ impl TexelImage {
         let sum: glam::DVec3 = self.texels.iter().map(|t| t.as_dvec3()).sum();
         (sum / self.texels.len().max(1) as f64).as_vec3()
     }
+}
+
+/// s − ⌊s⌋ in [0, 1], bit for bit `s.rem_euclid(1.0)` up to the sign of a zero (NaN for an
+/// infinite or NaN s), without the `fmod` and `floor` library calls (this build targets baseline
+/// x86-64, which has no rounding instruction). For |s| < 2⁵² both are one rounding of the same exact
+/// value: `rem_euclid` takes the exact s − trunc(s) and, when it is negative, rounds its sum with 1;
+/// here ⌊s⌋ is exact (truncation, stepped down for a negative non-integer) and s − ⌊s⌋ is rounded
+/// once. Beyond 2⁵² every f64 is an integer and s − s is 0 (NaN for ±∞, as `fmod` gives).
+#[inline]
+fn fraction(s: f64) -> f64 {
+    const TWO_POW_52: f64 = 4_503_599_627_370_496.0;
+    if !(s.abs() < TWO_POW_52) {
+        return s - s;
+    }
+    let truncated = s as i64 as f64;
+    let floor = if truncated > s { truncated - 1.0 } else { truncated };
+    s - floor
+}
+
+/// The two texel indices (of `n` along one axis) whose centres bracket texture coordinate `s`,
+/// wrapped around, and the weight of the second: the one-axis half of `TexelImage::bilinear`.
+/// The coordinate is reduced to one period first so that large uvs keep their fractional precision;
+/// the arithmetic is the reference's (`tests::bilinear_reference`), the wrap is two selects
+/// instead of two integer divisions.
+#[inline]
+fn wrapped_neighbours(s: f32, n: usize) -> (usize, usize, f32) {
+    let x = fraction(f64::from(s)) * n as f64 - 0.5;
+    // x ∈ [−0.5, n − 0.5] (or NaN, which casts to 0), so ⌊x⌋ ∈ [−1, n − 1]: truncation, stepped
+    // down below 0.
+    let truncated = x as i64;
+    let floor = if truncated as f64 > x { truncated - 1 } else { truncated };
+    let weight = (x - floor as f64) as f32;
+    let first = if floor < 0 { n - 1 } else { floor as usize };
+    let second = if first + 1 >= n { 0 } else { first + 1 };
+    (first, second, weight)
 }
 
 /// A colour-valued texture.
@@ -109,14 +135,26 @@ impl Texture {
                 let (s, t) = Texture::st(uv, *uscale, *vscale);
                 image.bilinear(s, t)
             }
-            Texture::Checkerboard { colour0, colour1, uscale, vscale } => {
-                let (s, t) = Texture::st(uv, *uscale, *vscale);
-                let upper = |x: f32| f64::from(x).rem_euclid(1.0) > 0.5;
-                if upper(s) == upper(t) {
+            Texture::Checkerboard { colour0, colour1, .. } => {
+                if self.checker_square(uv) == 0 {
                     *colour0
                 } else {
                     *colour1
                 }
+            }
+        }
+    }
+
+    /// For a checkerboard, which of its two colours covers `uv` (0 for `colour0`, 1 for
+    /// `colour1`); 0 for a bitmap.
+    #[inline]
+    pub fn checker_square(&self, uv: Vec2) -> usize {
+        match self {
+            Texture::Bitmap { .. } => 0,
+            Texture::Checkerboard { uscale, vscale, .. } => {
+                let (s, t) = Texture::st(uv, *uscale, *vscale);
+                let upper = |x: f32| fraction(f64::from(x)) > 0.5;
+                usize::from(upper(s) != upper(t))
             }
         }
     }

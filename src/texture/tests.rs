@@ -107,3 +107,70 @@ fn images_read_through_oiio_with_their_encoding() {
     assert_eq!(linear.texels, img.pixels);
     assert!(read_image(&dir.path().join("missing.png")).is_err());
 }
+
+/// The lookup as it was written first (f64 `rem_euclid`, `floor`, each texel index wrapped by an
+/// integer `rem_euclid`): the oracle for the faster `TexelImage::bilinear`.
+fn bilinear_reference(img: &TexelImage, s: f32, t: f32) -> Rgb {
+    let texel = |i: i64, j: i64| {
+        let x = i.rem_euclid(img.width as i64) as usize;
+        let y = j.rem_euclid(img.height as i64) as usize;
+        img.texels[y * img.width + x]
+    };
+    let x = f64::from(s).rem_euclid(1.0) * img.width as f64 - 0.5;
+    let y = f64::from(t).rem_euclid(1.0) * img.height as f64 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+    let (i, j) = (x0 as i64, y0 as i64);
+    let top = texel(i, j) * (1.0 - fx) + texel(i + 1, j) * fx;
+    let bottom = texel(i, j + 1) * (1.0 - fx) + texel(i + 1, j + 1) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
+
+/// Coordinates that probe every branch of the wrap: random ones over several periods either side
+/// of 0, random bit patterns (any magnitude, ±∞, NaN), integers, values within an ulp of an integer
+/// (whose reduction rounds to 1), texel centres and the midpoints between them.
+fn probe_coordinates(n: usize) -> Vec<f32> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(20);
+    let mut v: Vec<f32> = (0..20_000).map(|_| rng.gen_range(-5.0f32..5.0)).collect();
+    v.extend((0..20_000).map(|_| f32::from_bits(rng.gen())));
+    for k in -3i32..=3 {
+        let k = k as f32;
+        v.extend([k, -0.0, 0.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 1e-30, -1e-30, 3e7, -3e7]);
+        v.extend([k.next_up(), k.next_down(), k + 0.5, (k + 1e-7).next_down()]);
+    }
+    for i in 0..=2 * n {
+        v.push(i as f32 / (2 * n) as f32);
+        v.push(-(i as f32) / (2 * n) as f32);
+    }
+    v
+}
+
+/// The fast lookup gives the reference's result bit for bit (NaN where it gives NaN) on images of
+/// one texel, a row, a column and the 4×2 test image. The wrong variant (the coordinate reduced in
+/// f32, `s - s.floor()`, which loses the fraction of large uvs and rounds differently) differs on
+/// the same probes, so the comparison can see a change of arithmetic.
+#[test]
+fn bilinear_is_bit_identical_to_the_reference() {
+    let same = |a: Rgb, b: Rgb| (0..3).all(|c| a[c].to_bits() == b[c].to_bits() || (a[c].is_nan() && b[c].is_nan()));
+    let single = TexelImage { width: 1, height: 1, texels: vec![Rgb::new(0.25, 0.5, 0.75)] };
+    let row = TexelImage { width: 3, height: 1, texels: vec![Rgb::X, Rgb::Y, Rgb::Z] };
+    let column = TexelImage { width: 1, height: 3, texels: vec![Rgb::X, Rgb::Y, Rgb::Z] };
+    for img in [image(), single, row, column] {
+        let coords = probe_coordinates(img.width.max(img.height));
+        let mut wrong_differs = 0usize;
+        for (k, &s) in coords.iter().enumerate() {
+            let t = coords[(k * 7919 + 13) % coords.len()];
+            let fast = img.bilinear(s, t);
+            let reference = bilinear_reference(&img, s, t);
+            assert!(same(fast, reference), "({s:e}, {t:e}) on {}×{}: {fast:?} vs {reference:?}", img.width, img.height);
+            let wrong = bilinear_reference(&img, s - s.floor(), t - t.floor());
+            if !same(wrong, reference) {
+                wrong_differs += 1;
+            }
+        }
+        if img.width * img.height > 1 {
+            assert!(wrong_differs > 100, "the f32 reduction differs on only {wrong_differs} probes");
+        }
+    }
+}
