@@ -469,6 +469,7 @@ mod tests {
             (sin, cos)
         };
         let naive = worst(&taylor);
+        eprintln!("sin/cos of π/4·t, worst absolute error: polynomial {ours:.2e}, libm {libm:.2e}, Taylor {naive:.2e}");
         assert!(naive >= 1.5e-7, "the Taylor variant should fail the bound: {naive:e}");
 
         // The disk point against the map in f64 (the same wedges, f64 sin and cos).
@@ -505,6 +506,9 @@ mod tests {
             }
         };
         let wrong = disk_error(&short_sine);
+        eprintln!(
+            "concentric disk point, worst absolute error: polynomial {ours:.2e}, without the t⁷ term {wrong:.2e}"
+        );
         assert!(wrong >= 2.5e-7, "dropping the sine's t⁷ term should fail the bound: {wrong:e}");
     }
 
