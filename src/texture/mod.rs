@@ -171,12 +171,12 @@ fn eight_bit_levels(data: &[f32]) -> Option<[f32; 256]> {
 /// x86-64, which has no rounding instruction). For |s| < 2⁵² both are one rounding of the same exact
 /// value: `rem_euclid` takes the exact s − trunc(s) and, when it is negative, rounds its sum with 1;
 /// here ⌊s⌋ is exact (truncation, stepped down for a negative non-integer) and s − ⌊s⌋ is rounded
-/// once. Beyond 2⁵² every f64 is an integer and s − s is 0 (NaN for ±∞, as `fmod` gives).
+/// once. Beyond 2⁵² every f64 is an integer and the fraction is 0 (NaN for ±∞, as `fmod` gives).
 #[inline]
 fn fraction(s: f64) -> f64 {
     const TWO_POW_52: f64 = 4_503_599_627_370_496.0;
     if !(s.abs() < TWO_POW_52) {
-        return s - s;
+        return if s.is_finite() { 0.0 } else { f64::NAN };
     }
     let truncated = s as i64 as f64;
     let floor = if truncated > s { truncated - 1.0 } else { truncated };
