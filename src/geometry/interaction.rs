@@ -23,7 +23,7 @@ pub struct SurfaceInteraction {
 impl SurfaceInteraction {
     /// Builds the interaction for `hit` on `mesh`. The error bound is pbrt-v4's for barycentric
     /// interpolation: γ(7)·Σ|b_i v_i| (pbrt-v4 Sec. 6.8.5).
-    #[inline]
+    #[inline(always)]
     pub fn from_hit(mesh: &TriangleMesh, hit: &Hit) -> SurfaceInteraction {
         let [v0, v1, v2] = mesh.triangle(hit.prim_id);
         let b1 = hit.b1;

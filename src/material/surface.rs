@@ -38,19 +38,29 @@ pub struct SurfaceMaterial {
     pub template: Material,
     pub two_sided: bool,
     textures: Vec<(ColourSlot, Texture)>,
+    /// When the only texture is a checkerboard: the material on each of its two squares, made
+    /// once (a conductor's colour turned into η and k, a plastic's coating rebuilt), so that
+    /// `bsdf_at` only picks one. The same values `set_slot` gives at every lookup.
+    checker_materials: Option<[Material; 2]>,
     opacity: Option<Opacity>,
 }
 
 impl SurfaceMaterial {
     /// An untextured, opaque material.
     pub fn new(template: Material, two_sided: bool) -> SurfaceMaterial {
-        SurfaceMaterial { template, two_sided, textures: Vec::new(), opacity: None }
+        SurfaceMaterial { template, two_sided, textures: Vec::new(), checker_materials: None, opacity: None }
     }
 
     /// Drives `slot` with `texture` (the template's value there becomes the texture's mean).
     pub fn with_texture(mut self, slot: ColourSlot, texture: Texture) -> SurfaceMaterial {
         self.template = set_slot(self.template, slot, texture.mean());
         self.textures.push((slot, texture));
+        self.checker_materials = match self.textures.as_slice() {
+            [(slot, Texture::Checkerboard { colour0, colour1, .. })] => {
+                Some([set_slot(self.template, *slot, *colour0), set_slot(self.template, *slot, *colour1)])
+            }
+            _ => None,
+        };
         self
     }
 
@@ -87,6 +97,9 @@ impl SurfaceMaterial {
     pub fn bsdf_at(&self, uv: Vec2) -> Bsdf {
         if self.textures.is_empty() {
             return Bsdf { material: self.template, two_sided: self.two_sided };
+        }
+        if let (Some(materials), [(_, checker)]) = (&self.checker_materials, self.textures.as_slice()) {
+            return Bsdf { material: materials[checker.checker_square(uv)], two_sided: self.two_sided };
         }
         let mut m = self.template;
         for (slot, tex) in &self.textures {

@@ -101,3 +101,38 @@ fn two_sided_back_behaves_as_front() {
         }
     }
 }
+
+/// A material whose only texture is a checkerboard picks one of two materials made once; they are
+/// what the per-lookup conversion gives, bit for bit, on both squares (a textured conductor's η
+/// and k from `conductor_from_colour`, a plastic's diffuse colour through `with_colours`). The
+/// wrong variant (the squares' materials swapped) differs wherever the colours do.
+#[test]
+fn checkerboard_materials_are_the_per_lookup_ones() {
+    use crate::texture::Texture;
+    use glam::Vec2;
+    let (c0, c1) = (Rgb::new(0.8, 0.7, 0.6), Rgb::new(0.2, 0.25, 0.3));
+    let checker = Texture::Checkerboard { colour0: c0, colour1: c1, uscale: 20.0, vscale: 80.0 };
+    let plastic = Plastic::new(Rgb::splat(0.5), Rgb::ONE, 1.5, false);
+    let conductor = SurfaceMaterial::new(Material::conductor_from_colour(0.1, Rgb::ONE), true)
+        .with_texture(ColourSlot::Colour, checker.clone());
+    let rough_plastic = SurfaceMaterial::new(Material::RoughPlastic { alpha: 0.2, plastic }, false)
+        .with_texture(ColourSlot::Diffuse, checker.clone());
+    let mut rng = Rng::new(11, 0);
+    let (mut squares, mut swapped_differs) = ([0usize; 2], 0usize);
+    for _ in 0..4000 {
+        let uv = Vec2::new(rng.uniform() * 3.0 - 1.0, rng.uniform() * 3.0 - 1.0);
+        let colour = checker.eval(uv);
+        squares[checker.checker_square(uv)] += 1;
+        let got = conductor.bsdf_at(uv);
+        assert_eq!(got.material, Material::conductor_from_colour(0.1, colour), "conductor at {uv:?}");
+        assert!(got.two_sided);
+        let want = Material::RoughPlastic { alpha: 0.2, plastic: plastic.with_colours(colour, plastic.specular) };
+        assert_eq!(rough_plastic.bsdf_at(uv).material, want, "plastic at {uv:?}");
+        let other = if colour == c0 { c1 } else { c0 };
+        if Material::conductor_from_colour(0.1, other) != got.material {
+            swapped_differs += 1;
+        }
+    }
+    assert!(squares[0] > 1000 && squares[1] > 1000, "both squares probed: {squares:?}");
+    assert_eq!(swapped_differs, 4000);
+}

@@ -106,7 +106,7 @@ impl Scene {
     }
     /// The surface interaction of `hit`, the accelerator's closest hit along `ray`: the first
     /// surface that stops `ray` (masked surfaces let it pass where their mask says).
-    #[inline]
+    #[inline(always)]
     pub fn interaction(&self, ray: &Ray, hit: &Hit) -> Option<SurfaceInteraction> {
         let si = SurfaceInteraction::from_hit(&self.meshes[hit.geom_id as usize], hit);
         if !self.masked {

@@ -15,7 +15,7 @@ use crate::film::Image;
 fn image() -> TexelImage {
     let (w, h) = (4, 2);
     let texels = (0..h).flat_map(|j| (0..w).map(move |i| Rgb::new(i as f32 / 8.0, j as f32 / 8.0, 0.125))).collect();
-    TexelImage { width: w, height: h, texels }
+    TexelImage::from_texels(w, h, texels)
 }
 
 fn close(a: Rgb, b: Rgb) -> bool {
@@ -32,17 +32,17 @@ fn bilinear_hits_centres_and_wraps() {
         for i in 0..4 {
             let s = (i as f32 + 0.5) / 4.0;
             let t = (j as f32 + 0.5) / 2.0;
-            assert!(close(img.bilinear(s, t), img.texels[j * 4 + i]), "texel ({i}, {j})");
+            assert!(close(img.bilinear(s, t), img.texel(i, j)), "texel ({i}, {j})");
             // One period away, the same.
-            assert!(close(img.bilinear(s + 3.0, t - 2.0), img.texels[j * 4 + i]));
+            assert!(close(img.bilinear(s + 3.0, t - 2.0), img.texel(i, j)));
         }
     }
     let mid = img.bilinear(0.25, 0.25);
-    assert!(close(mid, (img.texels[0] + img.texels[1]) * 0.5));
+    assert!(close(mid, (img.texel(0, 0) + img.texel(1, 0)) * 0.5));
     let seam = img.bilinear(0.0, 0.25);
-    let wrapped = (img.texels[0] + img.texels[3]) * 0.5;
+    let wrapped = (img.texel(0, 0) + img.texel(3, 0)) * 0.5;
     assert!(close(seam, wrapped), "{seam:?} vs {wrapped:?}");
-    assert!(!close(seam, img.texels[0]), "a clamped edge would give the first column");
+    assert!(!close(seam, img.texel(0, 0)), "a clamped edge would give the first column");
 }
 
 /// (u, v) = (½W⁻¹, ½H⁻¹) is the centre of the bottom-left texel: v = 0 is the bottom (OBJ's
@@ -52,11 +52,11 @@ fn bilinear_hits_centres_and_wraps() {
 fn uv_convention_and_scales() {
     let img = Arc::new(image());
     let t = Texture::Bitmap { image: img.clone(), uscale: 1.0, vscale: 1.0 };
-    assert!(close(t.eval(Vec2::new(0.125, 0.25)), img.texels[4]), "bottom-left texel");
-    assert!(close(t.eval(Vec2::new(0.125, 0.75)), img.texels[0]), "top-left texel");
+    assert!(close(t.eval(Vec2::new(0.125, 0.25)), img.texel(0, 1)), "bottom-left texel");
+    assert!(close(t.eval(Vec2::new(0.125, 0.75)), img.texel(0, 0)), "top-left texel");
     let scaled = Texture::Bitmap { image: img.clone(), uscale: 2.0, vscale: 3.0 };
     // u = 0.0625·2 = 0.125 (first column centre); 1 − v = 0.25/3·3 = 0.25 (top row centre).
-    assert!(close(scaled.eval(Vec2::new(0.0625, 1.0 - 0.25 / 3.0)), img.texels[0]));
+    assert!(close(scaled.eval(Vec2::new(0.0625, 1.0 - 0.25 / 3.0)), img.texel(0, 0)));
 }
 
 /// colour0 on the squares where s and t are in the same half of their period.
@@ -95,15 +95,148 @@ fn images_read_through_oiio_with_their_encoding() {
             let slope =
                 if v > 0.0031308 { 2.4 * (srgb_oetf(v) + 0.055).powf(1.4) / 1.055f32.powf(2.4) } else { 1.0 / 12.92 };
             let tol = slope * 0.5 / 255.0 + 1e-6;
-            assert!((decoded.texels[k][c] - v).abs() <= tol, "texel {k} channel {c}: {} vs {v}", decoded.texels[k][c]);
+            assert!(
+                (decoded.texel(k % 3, k / 3)[c] - v).abs() <= tol,
+                "texel {k} channel {c}: {} vs {v}",
+                decoded.texel(k % 3, k / 3)[c]
+            );
         }
     }
-    assert!((raw.texels[2].x - 0.5).abs() > 0.2);
+    assert!((raw.texel(2, 0).x - 0.5).abs() > 0.2);
     let exr = dir.path().join("t.exr");
     write_image(&exr, &img, &WriteOptions::default()).expect("exr");
     let read = read_image(&exr).expect("read exr");
     assert!(read.is_float && read.srgb != Some(true));
     let linear = TexelImage::from_read(&read, false);
-    assert_eq!(linear.texels, img.pixels);
+    let texels: Vec<Rgb> = (0..6).map(|k| linear.texel(k % 3, k / 3)).collect();
+    assert_eq!(texels, img.pixels);
+    assert!(!linear.is_coded(), "a float image is held as f32");
     assert!(read_image(&dir.path().join("missing.png")).is_err());
+}
+
+/// The lookup as it was written first (f64 `rem_euclid`, `floor`, each texel index wrapped by an
+/// integer `rem_euclid`): the oracle for the faster `TexelImage::bilinear`.
+fn bilinear_reference(img: &TexelImage, s: f32, t: f32) -> Rgb {
+    let texel = |i: i64, j: i64| {
+        let x = i.rem_euclid(img.width as i64) as usize;
+        let y = j.rem_euclid(img.height as i64) as usize;
+        img.texel(x, y)
+    };
+    let x = f64::from(s).rem_euclid(1.0) * img.width as f64 - 0.5;
+    let y = f64::from(t).rem_euclid(1.0) * img.height as f64 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+    let (i, j) = (x0 as i64, y0 as i64);
+    let top = texel(i, j) * (1.0 - fx) + texel(i + 1, j) * fx;
+    let bottom = texel(i, j + 1) * (1.0 - fx) + texel(i + 1, j + 1) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
+
+/// Coordinates that probe every branch of the wrap: random ones over several periods either side
+/// of 0, random bit patterns (any magnitude, ±∞, NaN), integers, values within an ulp of an integer
+/// (whose reduction rounds to 1), texel centres and the midpoints between them.
+fn probe_coordinates(n: usize) -> Vec<f32> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(20);
+    let mut v: Vec<f32> = (0..20_000).map(|_| rng.gen_range(-5.0f32..5.0)).collect();
+    v.extend((0..20_000).map(|_| f32::from_bits(rng.gen())));
+    for k in -3i32..=3 {
+        let k = k as f32;
+        v.extend([k, -0.0, 0.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 1e-30, -1e-30, 3e7, -3e7]);
+        v.extend([k.next_up(), k.next_down(), k + 0.5, (k + 1e-7).next_down()]);
+    }
+    for i in 0..=2 * n {
+        v.push(i as f32 / (2 * n) as f32);
+        v.push(-(i as f32) / (2 * n) as f32);
+    }
+    v
+}
+
+/// The fast lookup gives the reference's result bit for bit (NaN where it gives NaN) on images of
+/// one texel, a row, a column and the 4×2 test image. The wrong variant (the coordinate reduced in
+/// f32, `s - s.floor()`, which loses the fraction of large uvs and rounds differently) differs on
+/// the same probes, so the comparison can see a change of arithmetic.
+#[test]
+fn bilinear_is_bit_identical_to_the_reference() {
+    let same = |a: Rgb, b: Rgb| (0..3).all(|c| a[c].to_bits() == b[c].to_bits() || (a[c].is_nan() && b[c].is_nan()));
+    let single = TexelImage::from_texels(1, 1, vec![Rgb::new(0.25, 0.5, 0.75)]);
+    let row = TexelImage::from_texels(3, 1, vec![Rgb::X, Rgb::Y, Rgb::Z]);
+    let column = TexelImage::from_texels(1, 3, vec![Rgb::X, Rgb::Y, Rgb::Z]);
+    for img in [image(), single, row, column] {
+        let coords = probe_coordinates(img.width.max(img.height));
+        let mut wrong_differs = 0usize;
+        for (k, &s) in coords.iter().enumerate() {
+            let t = coords[(k * 7919 + 13) % coords.len()];
+            let fast = img.bilinear(s, t);
+            let reference = bilinear_reference(&img, s, t);
+            assert!(same(fast, reference), "({s:e}, {t:e}) on {}×{}: {fast:?} vs {reference:?}", img.width, img.height);
+            let wrong = bilinear_reference(&img, s - s.floor(), t - t.floor());
+            if !same(wrong, reference) {
+                wrong_differs += 1;
+            }
+        }
+        if img.width * img.height > 1 {
+            assert!(wrong_differs > 100, "the f32 reduction differs on only {wrong_differs} probes");
+        }
+    }
+}
+
+/// An 8-bit image (as OpenImageIO hands out a PNG or JPEG) is held as byte codes and decodes to the
+/// texels of the f32 form bit for bit, sRGB-decoded or not, at every texel and in bilinear lookups,
+/// in a quarter of the memory; values that are not 8-bit levels (the wrong input for the coded
+/// form: 0.5 + 1e-3, or the same level given as two different f32s) keep the f32 form.
+#[test]
+fn eight_bit_images_are_held_as_codes_bit_for_bit() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(8);
+    let (w, h) = (37, 23);
+    // Levels as OpenImageIO converts them (c · (1/255) in f32) for RGB, grey and grey+alpha.
+    for channels in [3usize, 4, 1, 2] {
+        let data: Vec<f32> = (0..w * h * channels).map(|_| f32::from(rng.gen::<u8>()) * (1.0 / 255.0)).collect();
+        let img = ReadImage { width: w, height: h, channels, data, is_float: false, srgb: None };
+        for srgb in [true, false] {
+            let coded = TexelImage::from_read(&img, srgb);
+            assert!(coded.is_coded(), "{channels} channels");
+            let decode = |v: f32| if srgb { srgb_eotf(v) } else { v };
+            let linear = TexelImage::from_texels(
+                w,
+                h,
+                img.data
+                    .chunks_exact(channels)
+                    .map(|p| {
+                        if channels >= 3 {
+                            Rgb::new(decode(p[0]), decode(p[1]), decode(p[2]))
+                        } else {
+                            Rgb::splat(decode(p[0]))
+                        }
+                    })
+                    .collect(),
+            );
+            // 3 bytes a texel and the 256-entry table, against 12 bytes a texel.
+            assert_eq!((coded.memory_bytes(), linear.memory_bytes()), (w * h * 3 + 256 * 4, w * h * 12));
+            for j in 0..h {
+                for i in 0..w {
+                    assert_eq!(
+                        coded.texel(i, j).to_array().map(f32::to_bits),
+                        linear.texel(i, j).to_array().map(f32::to_bits)
+                    );
+                }
+            }
+            for _ in 0..2000 {
+                let (s, t) = (rng.gen_range(-2.0f32..2.0), rng.gen_range(-2.0f32..2.0));
+                let (a, b) = (coded.bilinear(s, t), linear.bilinear(s, t));
+                assert_eq!(a.to_array().map(f32::to_bits), b.to_array().map(f32::to_bits), "({s}, {t})");
+            }
+            assert_eq!(coded.mean(), linear.mean());
+        }
+    }
+    let off_level =
+        ReadImage { width: 2, height: 1, channels: 1, data: vec![0.5 + 1e-3, 0.2], is_float: false, srgb: None };
+    assert!(!TexelImage::from_read(&off_level, false).is_coded());
+    let level = 100.0f32 / 255.0;
+    let twice =
+        ReadImage { width: 2, height: 1, channels: 1, data: vec![level, level.next_up()], is_float: false, srgb: None };
+    let t = TexelImage::from_read(&twice, false);
+    assert!(!t.is_coded());
+    assert_eq!((t.texel(0, 0).x, t.texel(1, 0).x), (level, level.next_up()));
 }
