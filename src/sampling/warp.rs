@@ -14,7 +14,7 @@
 // `!(x > 0.0)` is deliberate throughout: it rejects NaN along with the out-of-range values.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use std::f32::consts::{FRAC_1_PI, PI};
+use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
 
 use glam::{Vec2, Vec3};
 
@@ -62,40 +62,9 @@ pub fn sample_uniform_disk_concentric(u: [f32; 2]) -> Vec2 {
     if a == 0.0 && b == 0.0 {
         return Vec2::ZERO;
     }
-    // In the wedge |a| > |b| the point is a·(cos θ, sin θ) with θ = π/4·b/a; in the other it is
-    // b·(cos θ, sin θ) with θ = π/2 − π/4·a/b, whose cosine and sine are the sine and cosine of
-    // π/4·a/b. Either way one angle in [−π/4, π/4], whose sine and cosine a short polynomial gives.
-    let first_wedge = a.abs() > b.abs();
-    let (r, q) = if first_wedge { (a, b) } else { (b, a) };
-    let (s, c) = sin_cos_quarter_pi(q / r);
-    if first_wedge {
-        Vec2::new(r * c, r * s)
-    } else {
-        Vec2::new(r * s, r * c)
-    }
-}
-
-/// Coefficients of t, t³, t⁵, t⁷ in the near-minimax fit of sin(π/4·t) over [−1, 1] (absolute error
-/// of the polynomial itself 1.2e-9), and of 1, t², …, t⁸ in that of cos(π/4·t) (5e-11); fitted by
-/// iteratively reweighted least squares in f64 on 4,000 Chebyshev nodes, rounded to f32. The first
-/// sine coefficient is the fit's, one f32 ulp below π/4, not π/4 itself.
-#[allow(clippy::approx_constant)]
-const SIN_QUARTER_PI: [f32; 4] = [0.785_398_1, -0.080_745_37, 0.002_489_872, -3.587_726e-5];
-const COS_QUARTER_PI: [f32; 5] = [1.0, -0.308_425_13, 0.015_854_325, -0.000_325_938_63, 3.529_811_2e-6];
-
-/// (sin(π/4·t), cos(π/4·t)) for t ∈ [−1, 1], by the polynomials above (Horner in t², f32): the
-/// concentric map's angles without a library `sincosf` and its range reduction. Worst absolute
-/// error against f64 1.0e-7 for either (about one f32 ulp at 1, as `sinf` of the rounded
-/// argument π/4·t; `tests::quarter_pi_sin_cos_is_accurate`); the degree-7/8 Taylor polynomials,
-/// the naive variant, reach 3.5e-7.
-#[inline]
-fn sin_cos_quarter_pi(t: f32) -> (f32, f32) {
-    let t2 = t * t;
-    let [s1, s3, s5, s7] = SIN_QUARTER_PI;
-    let [c0, c2, c4, c6, c8] = COS_QUARTER_PI;
-    let sin = t * (s1 + t2 * (s3 + t2 * (s5 + t2 * s7)));
-    let cos = c0 + t2 * (c2 + t2 * (c4 + t2 * (c6 + t2 * c8)));
-    (sin, cos)
+    let (r, theta) = if a.abs() > b.abs() { (a, FRAC_PI_4 * (b / a)) } else { (b, FRAC_PI_2 - FRAC_PI_4 * (a / b)) };
+    let (s, c) = theta.sin_cos();
+    Vec2::new(r * c, r * s)
 }
 
 /// Density of `sample_uniform_disk_concentric` per unit area: 1/π on the disk, 0 outside.
@@ -433,85 +402,6 @@ mod tests {
             |w| if w.z >= 0.3 { 1.0 / (2.0 * std::f64::consts::PI * 0.7 * 1.05) } else { 0.0 },
         );
         assert!(!r.passed, "wrong cone normalisation accepted: {}", r.message);
-    }
-
-    /// `sin_cos_quarter_pi` against f64 `sin`/`cos` on 2²¹ + 1 evenly spaced t in [−1, 1] and the
-    /// concentric map against its f64 evaluation on a 1024² grid of u: worst absolute error of the
-    /// sine and cosine 1.0e-7 (bound 1.5e-7: 1.25 f32 ulps at 1; libm's `sin_cos` of the rounded
-    /// argument π/4·t, the code this replaced, measures 8e-8 here), of the disk point 1.5e-7
-    /// (bound 2.5e-7). The same degree's Taylor polynomials (the naive variant) exceed the first
-    /// bound (3.5e-7), as does dropping the sine's last term (the second).
-    #[test]
-    fn quarter_pi_sin_cos_is_accurate() {
-        let exact = |t: f32| {
-            let x = std::f64::consts::FRAC_PI_4 * f64::from(t);
-            (x.sin(), x.cos())
-        };
-        let worst = |f: &dyn Fn(f32) -> (f32, f32)| {
-            let n = 1 << 20;
-            (-n..=n).fold(0.0f64, |m, i| {
-                let t = i as f32 / n as f32;
-                let ((s, c), (es, ec)) = (f(t), exact(t));
-                m.max((f64::from(s) - es).abs()).max((f64::from(c) - ec).abs())
-            })
-        };
-        let ours = worst(&sin_cos_quarter_pi);
-        assert!(ours < 1.5e-7, "polynomial sin/cos error {ours:e}");
-        let libm = worst(&|t: f32| (std::f32::consts::FRAC_PI_4 * t).sin_cos());
-        assert!(libm < 1.5e-7, "libm {libm:e}");
-        let q = std::f64::consts::FRAC_PI_4;
-        let taylor = |t: f32| {
-            let (t2, t) = (f64::from(t * t), f64::from(t));
-            let s = [q, -q.powi(3) / 6.0, q.powi(5) / 120.0, -q.powi(7) / 5040.0].map(|c| c as f32);
-            let c =
-                [1.0, -q.powi(2) / 2.0, q.powi(4) / 24.0, -q.powi(6) / 720.0, q.powi(8) / 40320.0].map(|c| c as f32);
-            let (t2, t) = (t2 as f32, t as f32);
-            let sin = t * (s[0] + t2 * (s[1] + t2 * (s[2] + t2 * s[3])));
-            let cos = c[0] + t2 * (c[1] + t2 * (c[2] + t2 * (c[3] + t2 * c[4])));
-            (sin, cos)
-        };
-        let naive = worst(&taylor);
-        eprintln!("sin/cos of π/4·t, worst absolute error: polynomial {ours:.2e}, libm {libm:.2e}, Taylor {naive:.2e}");
-        assert!(naive >= 1.5e-7, "the Taylor variant should fail the bound: {naive:e}");
-
-        // The disk point against the map in f64 (the same wedges, f64 sin and cos).
-        let disk_f64 = |u: [f32; 2]| {
-            let (a, b) = (2.0 * f64::from(u[0]) - 1.0, 2.0 * f64::from(u[1]) - 1.0);
-            if a.abs() > b.abs() {
-                let th = std::f64::consts::FRAC_PI_4 * (b / a);
-                (a * th.cos(), a * th.sin())
-            } else {
-                let th = std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * (a / b);
-                (b * th.cos(), b * th.sin())
-            }
-        };
-        let disk_error = |map: &dyn Fn([f32; 2]) -> Vec2| {
-            unit_grid(1024).fold(0.0f64, |m, u| {
-                let (p, (x, y)) = (map(u), disk_f64(u));
-                m.max((f64::from(p.x) - x).abs()).max((f64::from(p.y) - y).abs())
-            })
-        };
-        let ours = disk_error(&sample_uniform_disk_concentric);
-        assert!(ours < 2.5e-7, "disk point error {ours:e}");
-        let short_sine = |u: [f32; 2]| {
-            let (a, b) = (2.0 * u[0] - 1.0, 2.0 * u[1] - 1.0);
-            let first_wedge = a.abs() > b.abs();
-            let (r, q) = if first_wedge { (a, b) } else { (b, a) };
-            let t = q / r;
-            let [s1, s3, s5, _] = SIN_QUARTER_PI;
-            let (_, c) = sin_cos_quarter_pi(t);
-            let s = t * (s1 + t * t * (s3 + t * t * s5));
-            if first_wedge {
-                Vec2::new(r * c, r * s)
-            } else {
-                Vec2::new(r * s, r * c)
-            }
-        };
-        let wrong = disk_error(&short_sine);
-        eprintln!(
-            "concentric disk point, worst absolute error: polynomial {ours:.2e}, without the t⁷ term {wrong:.2e}"
-        );
-        assert!(wrong >= 2.5e-7, "dropping the sine's t⁷ term should fail the bound: {wrong:e}");
     }
 
     #[test]
