@@ -2,7 +2,8 @@
 //! hold their eight children's boxes in SIMD-friendly rows so that one node visit tests all eight
 //! (`triangle::slab8`, one AVX pass where the CPU has AVX2, chosen at run time), an ordered stack traversal (nearest child first, entries farther than the current
 //! hit skipped when popped), and leaves of packets of four triangles tested at once by the
-//! watertight ray–triangle test of Woop et al. 2013 (see `triangle`). Answers the same queries as
+//! watertight ray–triangle test of Woop et al. 2013 (see `triangle`; a leaf of two packets in one
+//! AVX pass where the CPU has AVX2, `triangle::intersect8_k_avx`). Answers the same queries as
 //! Embree behind [`Accel`], with the same hit convention.
 
 mod build;
@@ -239,6 +240,21 @@ impl Bvh {
     fn closest<const KZ: usize, const AVX2: bool>(&self, ray: &Ray, pre: &RayPre) -> Option<Hit> {
         let mut best: Option<(usize, f32, f32, f32)> = None;
         self.traverse::<true, AVX2>(ray, pre, |first, count, mut t_max| {
+            #[cfg(target_arch = "x86_64")]
+            if AVX2 && count > PACKET && count <= 2 * PACKET {
+                // SAFETY: as below for both packets; `AVX2` traversals run only where the CPU has
+                // AVX2 and FMA (see `traverse`).
+                let hits = unsafe {
+                    let (lo, hi) = (self.packets.get_unchecked(first), self.packets.get_unchecked(first + 1));
+                    triangle::intersect8_k_avx::<KZ>(pre, lo, hi, lanes8(count), ray.t_min, t_max)
+                };
+                if let Some(lane) = hits.nearest() {
+                    t_max = hits.t[lane];
+                    best = Some((PACKET * first + lane, t_max, hits.b1[lane], hits.b2[lane]));
+                    prefetch(&self.ids, PACKET * first + lane);
+                }
+                return (t_max, false);
+            }
             for (k, packet) in (first..first + count.div_ceil(PACKET)).enumerate() {
                 debug_assert!(packet < self.packets.len());
                 // SAFETY: leaf packets lie within the packet array (checked by
@@ -264,6 +280,15 @@ impl Bvh {
     fn any<const KZ: usize, const AVX2: bool>(&self, ray: &Ray, pre: &RayPre) -> bool {
         let mut hit = false;
         self.traverse::<false, AVX2>(ray, pre, |first, count, t_max| {
+            #[cfg(target_arch = "x86_64")]
+            if AVX2 && count > PACKET && count <= 2 * PACKET {
+                // SAFETY: as in `closest`.
+                hit = unsafe {
+                    let (lo, hi) = (self.packets.get_unchecked(first), self.packets.get_unchecked(first + 1));
+                    triangle::intersect8_k_avx::<KZ>(pre, lo, hi, lanes8(count), ray.t_min, t_max).mask != 0
+                };
+                return (t_max, hit);
+            }
             hit = (first..first + count.div_ceil(PACKET)).enumerate().any(|(k, packet)| {
                 debug_assert!(packet < self.packets.len());
                 // SAFETY: as in `closest`.
@@ -294,6 +319,13 @@ fn prefetch<T>(v: &[T], i: usize) {
 #[inline(always)]
 fn lanes(remaining: usize) -> u32 {
     (1u32 << remaining.min(PACKET)) - 1
+}
+
+/// The lane mask of a leaf of `count` (5 to 8) triangles over its two packets, as one 8-lane mask
+/// (`triangle::intersect8_k_avx`).
+#[inline(always)]
+fn lanes8(count: usize) -> u32 {
+    lanes(count) | lanes(count - PACKET) << PACKET
 }
 
 /// Lays the leaves out in packets: gives each leaf slot of `nodes` (written by the build as first

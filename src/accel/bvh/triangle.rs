@@ -222,17 +222,21 @@ impl Tri4 {
     }
 }
 
-/// What [`intersect4_k`] found: the lanes hit within the interval and, per lane, `t`, `b1`, `b2`
-/// (meaningful in the hit lanes only).
+/// What [`intersect4_k`] (`N = 4`) or [`intersect8_k_avx`] (`N = 8`) found: the lanes hit within
+/// the interval and, per lane, `t`, `b1`, `b2` (meaningful in the hit lanes only).
 #[derive(Clone, Copy, Debug)]
-pub struct Hits4 {
+pub struct Hits<const N: usize> {
     pub mask: u32,
-    pub t: [f32; 4],
-    pub b1: [f32; 4],
-    pub b2: [f32; 4],
+    pub t: [f32; N],
+    pub b1: [f32; N],
+    pub b2: [f32; N],
 }
 
-impl Hits4 {
+pub type Hits4 = Hits<4>;
+
+impl<const N: usize> Hits<N> {
+    const NONE: Hits<N> = Hits { mask: 0, t: [0.0; N], b1: [0.0; N], b2: [0.0; N] };
+
     /// The nearest hit lane, the last of equals: the lane a sequential loop that accepts
     /// `t <= t_max` and lowers `t_max` to each hit would end with.
     #[inline(always)]
@@ -317,6 +321,111 @@ pub fn intersect4_k<const KZ: usize>(pre: &RayPre, tri: &Tri4, valid: u32, t_min
         return scalar(valid);
     }
     Hits4 { mask, t: t.to_array(), b1: (v * inv_det).to_array(), b2: (w * inv_det).to_array() }
+}
+
+/// [`intersect4_k`] on two packets at once in AVX (lanes 0–3 from `lo`, 4–7 from `hi`): the same
+/// f32 operations in the same order on eight lanes (`vmaxps` and the `_OQ` comparisons are the
+/// SSE ones lane by lane; `cmpne` is unordered as SSE's `cmpneqps`), so every lane's answer is
+/// [`intersect4_k`]'s, hence the scalar test's, bit for bit. Against one `t_max` for both packets,
+/// where the two-packet loop lowered it after the first: the nearest lane (last of equals) is the
+/// same either way.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+pub fn intersect8_k_avx<const KZ: usize>(
+    pre: &RayPre,
+    lo: &Tri4,
+    hi: &Tri4,
+    valid: u32,
+    t_min: f32,
+    t_max: f32,
+) -> Hits<8> {
+    use std::arch::x86_64::*;
+    debug_assert_eq!(pre.kz, KZ);
+    let kx = (KZ + 1) % 3;
+    let ky = (KZ + 2) % 3;
+    // SAFETY: each row of a `Tri4` is four contiguous f32, what each 128-bit half loads.
+    let row = |i: usize| unsafe { _mm256_loadu2_m128(hi.v[i].as_ptr(), lo.v[i].as_ptr()) };
+    let splat = |x: f32| _mm256_set1_ps(x);
+    let (sub, mul, add) = (
+        |a: __m256, b: __m256| _mm256_sub_ps(a, b),
+        |a: __m256, b: __m256| _mm256_mul_ps(a, b),
+        |a: __m256, b: __m256| _mm256_add_ps(a, b),
+    );
+    let max = |a: __m256, b: __m256| _mm256_max_ps(a, b);
+    let abs = |a: __m256| _mm256_andnot_ps(splat(-0.0), a);
+    let bits = |a: __m256| _mm256_movemask_ps(a) as u32;
+    let (ox, oy, oz) = (splat(pre.o[kx]), splat(pre.o[ky]), splat(pre.o[KZ]));
+    let (s0, s1, sz) = (splat(pre.s[0]), splat(pre.s[1]), splat(pre.s[2]));
+    let vertex = |i: usize| {
+        let z = sub(row(3 * i + KZ), oz);
+        (sub(sub(row(3 * i + kx), ox), mul(s0, z)), sub(sub(row(3 * i + ky), oy), mul(s1, z)), z)
+    };
+    let (ax, ay, az) = vertex(0);
+    let (bx, by, bz) = vertex(1);
+    let (cx, cy, cz) = vertex(2);
+    let u = sub(mul(cx, by), mul(cy, bx));
+    let v = sub(mul(ax, cy), mul(ay, cx));
+    let w = sub(mul(bx, ay), mul(by, ax));
+    let zero = _mm256_setzero_ps();
+    let (eq, lt, gt) = (
+        |a: __m256| _mm256_cmp_ps::<_CMP_EQ_OQ>(a, zero),
+        |a: __m256| _mm256_cmp_ps::<_CMP_LT_OQ>(a, zero),
+        |a: __m256| _mm256_cmp_ps::<_CMP_GT_OQ>(a, zero),
+    );
+    let scalar = |lanes: u32| {
+        let mut h = Hits::<8>::NONE;
+        for lane in 0..8 {
+            if lanes & (1 << lane) != 0 {
+                let [a, b, c] = if lane < 4 { lo.get(lane) } else { hi.get(lane - 4) };
+                if let Some((t, b1, b2)) = intersect_triangle_k::<KZ>(pre, a, b, c, t_min, t_max) {
+                    h.mask |= 1 << lane;
+                    (h.t[lane], h.b1[lane], h.b2[lane]) = (t, b1, b2);
+                }
+            }
+        }
+        h
+    };
+    if bits(_mm256_or_ps(_mm256_or_ps(eq(u), eq(v)), eq(w))) & valid != 0 {
+        return scalar(valid);
+    }
+    let outside =
+        bits(_mm256_or_ps(_mm256_or_ps(lt(u), lt(v)), lt(w))) & bits(_mm256_or_ps(_mm256_or_ps(gt(u), gt(v)), gt(w)));
+    let det = add(add(u, v), w);
+    let t_scaled = add(add(mul(u, mul(sz, az)), mul(v, mul(sz, bz))), mul(w, mul(sz, cz)));
+    let inv_det = _mm256_div_ps(splat(1.0), det);
+    let t = mul(t_scaled, inv_det);
+    let inside = bits(_mm256_cmp_ps::<_CMP_GE_OQ>(t, splat(t_min)))
+        & bits(_mm256_cmp_ps::<_CMP_LE_OQ>(t, splat(t_max)))
+        & bits(_mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero));
+    let mask = inside & !outside & valid;
+    if mask == 0 {
+        return Hits::<8>::NONE;
+    }
+    let max_zt = mul(max(max(abs(az), abs(bz)), abs(cz)), abs(sz));
+    let max_xt = max(max(abs(ax), abs(bx)), abs(cx));
+    let max_yt = max(max(abs(ay), abs(by)), abs(cy));
+    let (g2, g3, g5) = (splat(gamma(2)), splat(gamma(3)), splat(gamma(5)));
+    let delta_z = mul(g3, max_zt);
+    let delta_x = mul(g5, add(max_xt, max_zt));
+    let delta_y = mul(g5, add(max_yt, max_zt));
+    let delta_e = mul(splat(2.0), add(add(mul(mul(g2, max_xt), max_yt), mul(delta_y, max_xt)), mul(delta_x, max_yt)));
+    let max_e = max(max(abs(u), abs(v)), abs(w));
+    let delta_t = mul(
+        mul(splat(3.0), add(add(mul(mul(g3, max_e), max_zt), mul(delta_e, max_zt)), mul(delta_z, max_e))),
+        abs(inv_det),
+    );
+    if bits(_mm256_cmp_ps::<_CMP_GT_OQ>(t, delta_t)) & mask != mask {
+        return scalar(valid);
+    }
+    let mut h = Hits::<8> { mask, ..Hits::<8>::NONE };
+    // SAFETY: each destination is eight f32, what the unaligned 256-bit store writes.
+    unsafe {
+        _mm256_storeu_ps(h.t.as_mut_ptr(), t);
+        _mm256_storeu_ps(h.b1.as_mut_ptr(), mul(v, inv_det));
+        _mm256_storeu_ps(h.b2.as_mut_ptr(), mul(w, inv_det));
+    }
+    h
 }
 
 /// The ray parameter t at which `o + t·d` meets the plane of `(v0, v1, v2)`, in double precision:
@@ -542,5 +651,62 @@ mod tests {
         assert!(!slab(&pre, min, max, 0.0, 1.9));
         assert!(slab(&pre, min, max, 0.0, 2.0));
         assert!(!slab(&pre, min, max, 3.5, f32::INFINITY));
+    }
+
+    /// `intersect8_k_avx` against `intersect4_k` on each of its two packets, bit for bit, on random
+    /// packets (with triangles sharing edges and vertices, so that exact zeros take the scalar path)
+    /// and rays from near and far, with partial lane masks.
+    #[test]
+    fn eight_lane_avx_test_matches_the_four_lane_one() {
+        #[cfg(target_arch = "x86_64")]
+        if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+            let mut rng = crate::sampling::Rng::new(9, 0);
+            let mut p = |s: f32| Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 2.0 * s - Vec3::splat(s);
+            let (mut hits, mut cases) = (0, 0);
+            for n in 0..20000 {
+                let mut packets = [Tri4::EMPTY; 2];
+                let shared = [p(1.0), p(1.0)];
+                for lane in 0..8 {
+                    let tri = if lane % 3 == 0 { [shared[0], shared[1], p(1.0)] } else { [p(1.0), p(1.0), p(1.0)] };
+                    packets[lane / 4].set(lane % 4, tri);
+                }
+                let o = p([0.01, 3.0, 100.0][n % 3]);
+                let ray = Ray::new(o, p(0.5) - o);
+                let Some(pre) = RayPre::new(&ray) else { continue };
+                let valid = if n % 2 == 0 { 0xff } else { 0x0f | ((1 << (1 + n % 4)) - 1) << 4 };
+                let t_max = [f32::INFINITY, 1.0][n % 2];
+                let (eight, four) = match pre.kz {
+                    0 => (
+                        // SAFETY: the CPU has the features `intersect8_k_avx` is compiled for.
+                        unsafe { intersect8_k_avx::<0>(&pre, &packets[0], &packets[1], valid, 0.0, t_max) },
+                        packets.map(|t| intersect4_k::<0>(&pre, &t, 0xf, 0.0, t_max)),
+                    ),
+                    1 => (
+                        // SAFETY: as above.
+                        unsafe { intersect8_k_avx::<1>(&pre, &packets[0], &packets[1], valid, 0.0, t_max) },
+                        packets.map(|t| intersect4_k::<1>(&pre, &t, 0xf, 0.0, t_max)),
+                    ),
+                    _ => (
+                        // SAFETY: as above.
+                        unsafe { intersect8_k_avx::<2>(&pre, &packets[0], &packets[1], valid, 0.0, t_max) },
+                        packets.map(|t| intersect4_k::<2>(&pre, &t, 0xf, 0.0, t_max)),
+                    ),
+                };
+                let expected = (four[0].mask | four[1].mask << 4) & valid;
+                assert_eq!(eight.mask, expected, "case {n}");
+                for lane in (0..8).filter(|l| expected & (1 << l) != 0) {
+                    let h = &four[lane / 4];
+                    let k = lane % 4;
+                    assert_eq!(
+                        [eight.t[lane], eight.b1[lane], eight.b2[lane]].map(f32::to_bits),
+                        [h.t[k], h.b1[k], h.b2[k]].map(f32::to_bits),
+                        "case {n}, lane {lane}"
+                    );
+                }
+                hits += expected.count_ones();
+                cases += 1;
+            }
+            assert!(hits > 1000 && cases > 19000, "{hits} hits in {cases} cases");
+        }
     }
 }
