@@ -674,8 +674,12 @@ fn read_face<R: Read>(
                         fan.push(vertex_index(f, item.decode(b, big_endian))?);
                     }
                 }
-                for t in 1..fan.len() - 1 {
-                    indices.push([fan[0], fan[t], fan[t + 1]]);
+                // Only the index list makes triangles: another list (read past above) leaves
+                // `fan` as it was, perhaps empty or the previous face's.
+                if j == list {
+                    for t in 1..fan.len() - 1 {
+                        indices.push([fan[0], fan[t], fan[t + 1]]);
+                    }
                 }
             }
         }
@@ -916,5 +920,35 @@ mod tests {
         let odd = header("binary_little_endian", "property quad x\n", fp, 0, 0);
         assert!(read(&odd).expect_err("type").contains("unknown property type 'quad'"));
         assert!(read(b"plx\nformat ascii 1.0\nend_header\n").expect_err("magic").contains("start with"));
+    }
+
+    /// A face's other list longer than the read buffer (read item by item) makes no triangles:
+    /// before this fix the fan step after it ran for every list, so a long list ahead of the
+    /// index list took `fan.len() - 1` of an empty fan (a panic), and one after it repeated the
+    /// face's triangles.
+    #[test]
+    fn long_lists_other_than_the_indices_make_no_triangles() {
+        let vp = "property float x\nproperty float y\nproperty float z\n";
+        let long = CHUNK / 4 + 10;
+        for before in [true, false] {
+            let (indices, extra) = ("property list uchar int vertex_indices\n", "property list int float weights\n");
+            let fp = if before { format!("{extra}{indices}") } else { format!("{indices}{extra}") };
+            let mut b = header("binary_little_endian", vp, &fp, 3, 1);
+            b.extend([0u8; 36]);
+            let mut weights = (long as i32).to_le_bytes().to_vec();
+            weights.extend(std::iter::repeat_n(0u8, 4 * long));
+            let mut tri = vec![3u8];
+            for i in [0i32, 1, 2] {
+                tri.extend(i.to_le_bytes());
+            }
+            if before {
+                b.extend(&weights);
+                b.extend(&tri);
+            } else {
+                b.extend(&tri);
+                b.extend(&weights);
+            }
+            assert_eq!(read(&b).expect("valid").indices, vec![[0, 1, 2]], "long list before the indices: {before}");
+        }
     }
 }
