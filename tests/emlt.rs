@@ -8,7 +8,8 @@
 //! pt 4096 spp at 128×128: 67 million samples, whose own noise is estimated from their pixels and
 //! added to the variance): Welch's |z| < 5 everywhere, with the power check (a 10% error of any
 //! region holding at least a quarter of the average share must reach |z| = 5) on the 2×2
-//! quadrants; the 4×4 regions must agree too (|z| < 5), without a power claim. At least half of
+//! quadrants; the 4×4 regions must agree too (|z| < 5, and their shares' χ², p ≥ 1e-4:
+//! tests/common/agreement.rs's `shares_chi2` derives its bound), without a power claim. At least half of
 //! the guided strategies' proposals must be guided (|Υ| ≥ 2), not the plain fallbacks, and each
 //! strategy the scene exercises must have been guided, or the test would not test the guided
 //! kernels.
@@ -56,8 +57,8 @@ fn emlt_agrees_with_the_reference_on_cornell_box_and_a_linear_lens_without_lambd
     let mut wrong = emlt_with(PARAMS);
     wrong.linear_lens.omit_lambda = true;
     let (images, _) = emlt_renders(&scene(name, SIZE), &wrong, MPP);
-    let (coarse, fine) = share_test(&format!("emlt without λ on {name}"), &images, &reference(name), false);
-    assert!(coarse.max(fine) >= Z_CRITICAL, "the linear lens without λ passed: |z| = {coarse:.2}, {fine:.2}");
+    let test = share_test(&format!("emlt without λ on {name}"), &images, &reference(name), false);
+    assert!(test.coarse_z.max(test.fine_z) >= Z_CRITICAL, "the linear lens without λ passed: {}", test.summary());
 }
 
 /// The glossy Cornell box (a rough gold conductor, a rough-coated plastic block): the linear lens
