@@ -27,7 +27,6 @@
 //! edges (2–3× the chains' standard error), which only makes their test conservative.
 
 mod common;
-use common::agreement::Z_CRITICAL;
 use common::ensemble::{emlt_agrees_with_reference, emlt_renders, emlt_with, share_test, SIZE};
 use common::scenes::{reference, scene};
 
@@ -49,7 +48,10 @@ const PARAMS: &str = "max_depth = 8\nbootstrap = 20000\nensemble_size = 512\nalp
 /// 262,144 mutations per render.
 const MPP: u64 = 4096;
 
-/// The Cornell box's shares agree, and a linear lens without λ in its ratio fails the same test.
+/// The Cornell box's shares agree, and a linear lens without λ in its ratio fails the same test's
+/// χ² (asserted on the χ², the part with the margin: over five seed sets (2026-12-04, seed offsets
+/// 3, 1001, 2002, 3003, 4004) its worst 4×4 |z| was 12.34 / 6.92 / 14.08 / 7.13 / 8.85, only 1.38×
+/// the bound of 5 at worst, its χ² T 329 / 229 / 364 / 244 / 314 against bounds 74–84, 2.9–4.4×).
 #[test]
 fn emlt_agrees_with_the_reference_on_cornell_box_and_a_linear_lens_without_lambda_does_not() {
     let name = "cornell-box";
@@ -58,7 +60,7 @@ fn emlt_agrees_with_the_reference_on_cornell_box_and_a_linear_lens_without_lambd
     wrong.linear_lens.omit_lambda = true;
     let (images, _) = emlt_renders(&scene(name, SIZE), &wrong, MPP);
     let test = share_test(&format!("emlt without λ on {name}"), &images, &reference(name), false);
-    assert!(test.coarse_z.max(test.fine_z) >= Z_CRITICAL, "the linear lens without λ passed: {}", test.summary());
+    assert!(!test.chi2.passes(), "the linear lens without λ passed the χ²: {}", test.summary());
 }
 
 /// The glossy Cornell box (a rough gold conductor, a rough-coated plastic block): the linear lens

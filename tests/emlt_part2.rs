@@ -138,11 +138,12 @@ const NULL_TRIALS: u64 = 200_000;
 ///
 /// Measured (2026-12-04, load ~10–15; seed offsets 3, 1001, 2002, 3003, 4004 of `emlt_renders_seeded`,
 /// 3 the test's): correct worst |z| 0.65 (2×2, power 7.0–10.9) / 1.92 (4×4), χ² T = 17.2 (bound
-/// 79.9, p = 0.57; T 16.9–17.9, p ≥ 0.54 over three seed sets); the simulated false-failure rate
+/// 79.9, p = 0.57; T 14.7–35.3, p ≥ 0.07 over the five seed sets); the simulated false-failure rate
 /// 3.4e-4 (plain χ²₁₅: 4.3e-2). The wrong variant at 4×: T = 288 / 308 / 381 / 282 / 300 against
 /// bounds 127 / 146 / 167 / 129 / 119 (T/bound 2.1–2.5, p ≤ 3e-10), worst 4×4 |z| 7.3–8.4; the
 /// correct code at 4× T = 14.2 / 15.7 (p 0.73 / 0.67). At 1× the wrong variant's 4×4 |z| was
-/// 7.38 / 2.81 / 4.18 (seed offsets 3, 1001, 2002). The test costs ~50 CPU s (docs/mlt.md).
+/// 7.38 / 2.81 / 4.18 / 5.57 / 4.72 (the |z| ≥ 5 control passed it 3 times) and its χ² T 90 / 19 /
+/// 70 / 131 / 81 against bounds 72–80 (passed twice): hence 4×. The test costs 52 CPU s.
 #[test]
 fn all_strategies_agree_on_cornell_box_and_reusing_the_forward_fit_does_not() {
     let name = "cornell-box";
