@@ -12,6 +12,10 @@
 //!   deposits one unit of luminance weight per iteration) while the chain decides only how that
 //!   light is shared between the regions: a share test tests the chain, and dividing by the
 //!   render's own image mean removes b's error from it. [`assert_brightness_agrees`] tests b.
+//! - [`image_shares_chi2`]: all the regions' shares at once against a reference image, T = Σ z²
+//!   against Box's a·χ²_ν (bound derived at [`shares_chi2`], p < `SHARES_CHI2_ALPHA` fails), for
+//!   a wrong chain that moves a few per cent of the light between many regions, which no single
+//!   region's |z| need show (tests/common/ensemble.rs's `share_test` asserts it).
 
 use plexus::film::Image;
 use plexus::integrator::{create, Budget, NoProgress, RenderJob};
@@ -305,4 +309,209 @@ fn check_shares(what: &str, a: ShareAgreement) -> ShareAgreement {
     );
     assert!(a.worst_z < Z_CRITICAL, "{what}: region shares disagree (|z| = {:.2} ≥ {Z_CRITICAL})\n{report}", a.worst_z);
     a
+}
+
+/// Significance of the region shares' χ² test ([`image_shares_chi2`]): it fails when its p-value
+/// is below this. Its actual false-failure rate, simulated on correct emlt runs' covariances
+/// ([`shares_chi2_false_failure_rate`], 10⁶ trials each), is 2.5e-4 to 4.9e-4 (the plug-in error
+/// of a and ν from 16 renders); accepted, as it stays below the z tests' own family-wise rate
+/// (≤ 2.6e-3, [`share_agreement`]) and the tests are seeded (docs/mlt.md, "Issue 20, session 13").
+pub const SHARES_CHI2_ALPHA: f64 = 1e-4;
+
+/// The outcome of [`shares_chi2`]: the statistic T = Σ z_r² (the regions' share z of
+/// [`image_share_agreement`]), the null distribution it is compared with, a·χ²_ν (Box's
+/// approximation: `scale` a, `dof` ν), and T's p-value under it.
+#[derive(Clone, Copy, Debug)]
+pub struct SharesChi2 {
+    pub t: f64,
+    pub scale: f64,
+    pub dof: f64,
+    pub p: f64,
+}
+
+impl SharesChi2 {
+    /// The T at which p = `SHARES_CHI2_ALPHA`: the (1 − α) quantile of a·χ²_ν.
+    pub fn bound(&self) -> f64 {
+        let survival = |x: f64| plexus::sampling::chi2::chi2_survival(x, self.dof);
+        let (mut lo, mut hi) = (0.0, self.dof.max(1.0));
+        while survival(hi) > SHARES_CHI2_ALPHA {
+            hi *= 2.0;
+        }
+        for _ in 0..100 {
+            let mid = 0.5 * (lo + hi);
+            if survival(mid) > SHARES_CHI2_ALPHA {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        self.scale * hi
+    }
+
+    /// The test passes: p ≥ `SHARES_CHI2_ALPHA`.
+    pub fn passes(&self) -> bool {
+        self.p >= SHARES_CHI2_ALPHA
+    }
+
+    /// One line: T, the bound, a, ν and p.
+    pub fn summary(&self) -> String {
+        format!(
+            "χ² T = {:.2} (bound {:.2} at p = {SHARES_CHI2_ALPHA:e}; a = {:.3}, ν = {:.2}), p = {:.3e}",
+            self.t,
+            self.bound(),
+            self.scale,
+            self.dof,
+            self.p
+        )
+    }
+}
+
+/// The χ² test of all the regions' shares at once: T = Σ_r z_r², z_r = (x̄_r − y_r)/√(v̂_r + u_r)
+/// as in [`image_share_agreement`] (x̄ the mean of the method's per-render shares, v̂ its
+/// estimated variance, y the reference's shares, u their pixel-estimated variance).
+///
+/// **Bound.** The z test bounds the worst region; a wrong chain that moves a few per cent of the
+/// light between many regions at once shows as many moderate z's, which T adds up. Under
+/// agreement d = x̄ − y is Gaussian (means of 16 renders; the reference's 67 million samples) with
+/// covariance Σ = C_m + C_y: C_m the covariance of the method's mean shares (its renders' sample
+/// covariance ÷ K, K = 16 renders; the shares of one render are correlated: they sum to the number
+/// of regions R), C_y = J D Jᵀ the reference's (D = diag u; J = I − y 1ᵀ/R carries a region's noise
+/// into every share through the image mean, since y_r = m_r/M). Both annihilate 1 (shares sum to
+/// R), so d lives in R − 1 dimensions: one degree of freedom is lost. With the weights W =
+/// diag(1/w_r), w_r = v_r + u_r known, T = dᵀW d is a sum of χ²₁'s weighted by the eigenvalues of
+/// A = W^½ Σ W^½, with mean tr A and variance 2 tr A²; Box (1954) matches a·χ²_ν to these two
+/// moments: a = Var/(2 E), ν = 2 E²/Var (ν ≤ rank A ≤ R − 1).
+///
+/// The weights are estimated (v̂_r from the same 16 renders, u_r from the reference's pixels), so
+/// T's tail is heavier than the known-weight sum's: alone, d_r²/v̂_r is an F(1, 15), whose 1e-4
+/// tail is at 27.5 against χ²₁'s 15.1. The moments below carry that: by Welch–Satterthwaite ŵ_r ≈
+/// w_r χ²_f/f with f_r = (K − 1)(w_r/v_r)² (u_r's own estimate, from thousands of pixel
+/// differences, counts as exact), and d is independent of ŵ (a Gaussian sample's mean and
+/// covariance are independent), so E[1/ŵ_r] = g₁/w_r, g₁ = f/(f − 2), and E[1/ŵ_r²] = g₂/w_r²,
+/// g₂ = f²/((f − 2)(f − 4)); two regions' variance estimates covary by Cov(v̂_r, v̂_s) =
+/// 2 C_rs²/(K − 1) (Wishart), so E[1/(ŵ_r ŵ_s)] ≈ g₁_r g₁_s (1 + 2 B_rs²/(K − 1)), B = the method's
+/// share of A. Then E[T] = Σ_r A_rr g₁_r and E[T²] = Σ_rs (A_rr A_ss + 2 A_rs²) G_rs (Isserlis),
+/// G_rr = g₂_r, G_rs the product above; Box's a and ν are matched to these. Σ is replaced by its
+/// estimate (the bound is then a plug-in; tests/emlt_part2.rs's simulation measures the resulting
+/// false-failure rate). The share's ratio bias is O(CV²) of a render's image mean, as for the
+/// z test.
+pub fn shares_chi2(method: &[Vec<f64>], reference: &[f64], reference_variance: &[f64]) -> SharesChi2 {
+    let regions = reference.len();
+    let k = method.len() as f64;
+    let mean: Vec<f64> = (0..regions).map(|r| method.iter().map(|s| s[r]).sum::<f64>() / k).collect();
+    // C_m: the sample covariance of the renders' shares ÷ K.
+    let mut cm = vec![vec![0.0; regions]; regions];
+    for s in method {
+        for r in 0..regions {
+            for q in 0..regions {
+                cm[r][q] += (s[r] - mean[r]) * (s[q] - mean[q]) / ((k - 1.0) * k);
+            }
+        }
+    }
+    // C_y = J D Jᵀ, J_rj = δ_rj − y_r/R.
+    let j = |r: usize, q: usize| f64::from(u8::from(r == q)) - reference[r] / regions as f64;
+    let w: Vec<f64> = (0..regions).map(|r| cm[r][r] + reference_variance[r]).collect();
+    let (mut a, mut b) = (vec![vec![0.0; regions]; regions], vec![vec![0.0; regions]; regions]);
+    for r in 0..regions {
+        for q in 0..regions {
+            let cy: f64 = (0..regions).map(|i| j(r, i) * reference_variance[i] * j(q, i)).sum();
+            let norm = (w[r] * w[q]).sqrt();
+            a[r][q] = (cm[r][q] + cy) / norm;
+            b[r][q] = cm[r][q] / norm;
+        }
+    }
+    let t: f64 = (0..regions).map(|r| (mean[r] - reference[r]).powi(2) / w[r]).sum();
+    let f: Vec<f64> = (0..regions).map(|r| (k - 1.0) / b[r][r].powi(2)).collect();
+    let g1: Vec<f64> = f.iter().map(|f| f / (f - 2.0)).collect();
+    let g2: Vec<f64> = f.iter().map(|f| f * f / ((f - 2.0) * (f - 4.0))).collect();
+    let expected: f64 = (0..regions).map(|r| a[r][r] * g1[r]).sum();
+    let mut second = 0.0;
+    for r in 0..regions {
+        for q in 0..regions {
+            let (g, a2) = if r == q {
+                (g2[r], a[r][r].powi(2))
+            } else {
+                // A_rq² with the method's part B_rq² replaced by its unbiased estimate.
+                let (n, c) = (k - 1.0, a[r][q] - b[r][q]);
+                let b2 = n * n / ((n + 2.0) * (n - 1.0)) * (b[r][q].powi(2) - b[r][r] * b[q][q] / n);
+                (g1[r] * g1[q] * (1.0 + 2.0 * b2.max(0.0) / n), b2 + 2.0 * b[r][q] * c + c * c)
+            };
+            second += (a[r][r] * a[q][q] + 2.0 * a2) * g;
+        }
+    }
+    let variance = second - expected * expected;
+    let (scale, dof) = (variance / (2.0 * expected), 2.0 * expected * expected / variance);
+    let p = plexus::sampling::chi2::chi2_survival(t / scale, dof);
+    SharesChi2 { t, scale, dof, p }
+}
+
+/// [`shares_chi2`] of a method's renders (regions as [`region_means_on`] gives them on a
+/// `grid`×`grid` grid) against one committed reference image, its variance estimated from its
+/// pixels as in [`image_share_agreement`].
+pub fn image_shares_chi2(method: &[Vec<f64>], reference: &Image, grid: usize) -> SharesChi2 {
+    let regions = grid * grid;
+    assert_eq!(method[0].len(), regions + 1, "the method's regions are not {grid}×{grid}");
+    let means = region_means_on(reference, grid);
+    let reference_shares: Vec<f64> = means[..regions].iter().map(|m| m / means[regions]).collect();
+    let variance: Vec<f64> = relative_noise_of_region_means_on(reference, grid).iter().map(|n| n * n).collect();
+    shares_chi2(&shares(method), &reference_shares, &variance)
+}
+
+/// The false-failure rate of [`shares_chi2`] under agreement, by simulation: `trials` times, K =
+/// `RENDERS` renders' shares x_k = y + F g_k and the reference's y + J (√u ⊙ g′) (g, g′ standard
+/// normal, J as in [`shares_chi2`]; `factor` F is R × m with columns summing to 0, so each render's
+/// shares sum to R as real ones do, and F Fᵀ is a render's share covariance). Returns the fraction
+/// of trials with p < `SHARES_CHI2_ALPHA`, and the fraction a plain χ²_{R−1} bound (T against
+/// χ²_{R−1}'s 1 − α quantile: the shares' correlations and estimated variances ignored) fails.
+pub fn shares_chi2_false_failure_rate(
+    reference: &[f64],
+    reference_variance: &[f64],
+    factor: &[Vec<f64>],
+    trials: u64,
+    seed: u64,
+) -> (f64, f64) {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    let regions = reference.len();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let mut normal = move || -> f64 { StandardNormal.sample(&mut rng) };
+    let (mut failures, mut plain) = (0u64, 0u64);
+    for _ in 0..trials {
+        let method: Vec<Vec<f64>> = (0..RENDERS)
+            .map(|_| {
+                let g: Vec<f64> = (0..factor[0].len()).map(|_| normal()).collect();
+                (0..regions).map(|r| reference[r] + factor[r].iter().zip(&g).map(|(f, g)| f * g).sum::<f64>()).collect()
+            })
+            .collect();
+        let e: Vec<f64> = (0..regions).map(|r| reference_variance[r].sqrt() * normal()).collect();
+        let mean_e = e.iter().sum::<f64>() / regions as f64;
+        let observed: Vec<f64> = (0..regions).map(|r| reference[r] + e[r] - reference[r] * mean_e).collect();
+        let c = shares_chi2(&method, &observed, reference_variance);
+        failures += u64::from(!c.passes());
+        plain += u64::from(plexus::sampling::chi2::chi2_survival(c.t, (regions - 1) as f64) < SHARES_CHI2_ALPHA);
+    }
+    (failures as f64 / trials as f64, plain as f64 / trials as f64)
+}
+
+/// [`shares_chi2_false_failure_rate`] with the null model of a method's renders (4×4 region means,
+/// as [`region_means_on`] gives them) against a reference image: F = the renders' share deviations
+/// from their mean ÷ √(K − 1) (F Fᵀ is their sample covariance), y and u the reference's shares and
+/// pixel-estimated variances.
+pub fn image_shares_chi2_false_failure_rate(
+    method: &[Vec<f64>],
+    reference: &Image,
+    grid: usize,
+    trials: u64,
+    seed: u64,
+) -> (f64, f64) {
+    let regions = grid * grid;
+    let means = region_means_on(reference, grid);
+    let y: Vec<f64> = means[..regions].iter().map(|m| m / means[regions]).collect();
+    let u: Vec<f64> = relative_noise_of_region_means_on(reference, grid).iter().map(|n| n * n).collect();
+    let s = shares(method);
+    let (mean, _) = mean_and_variance_of_mean(&s);
+    let k = s.len() as f64;
+    let factor: Vec<Vec<f64>> =
+        (0..regions).map(|r| s.iter().map(|x| (x[r] - mean[r]) / (k - 1.0).sqrt()).collect()).collect();
+    shares_chi2_false_failure_rate(&y, &u, &factor, trials, seed)
 }

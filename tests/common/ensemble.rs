@@ -3,7 +3,8 @@
 //! (8×8) with many chains, and why the power is checked on the 2×2 quadrants.
 
 use super::agreement::{
-    assert_shares_agree_with_image, image_share_agreement, region_means_on, GRID, RENDERS, Z_CRITICAL,
+    assert_shares_agree_with_image, image_share_agreement, image_shares_chi2, region_means_on, SharesChi2, GRID,
+    RENDERS, Z_CRITICAL,
 };
 use super::scenes::{reference, scene_at};
 
@@ -28,10 +29,16 @@ pub fn emlt_with(params: &str) -> Emlt {
 /// `RENDERS` renders by `emlt` (seeds as `render_regions`), each finite and dropping nothing, and
 /// the first render's statistics.
 pub fn emlt_renders(scene: &Scene, emlt: &Emlt, mpp: u64) -> (Vec<Image>, serde_json::Value) {
+    emlt_renders_seeded(scene, emlt, mpp, 3)
+}
+
+/// [`emlt_renders`] with the seeds `k · 7919 + seed_offset`, k = 1..=`RENDERS` (another seed
+/// offset: another, independent set of renders).
+pub fn emlt_renders_seeded(scene: &Scene, emlt: &Emlt, mpp: u64, seed_offset: u64) -> (Vec<Image>, serde_json::Value) {
     let mut stats = serde_json::Value::Null;
     let images = (1..=RENDERS)
         .map(|k| {
-            let job = RenderJob { budget: Budget::SamplesPerPixel(mpp), seed: k * 7919 + 3, threads: 2 };
+            let job = RenderJob { budget: Budget::SamplesPerPixel(mpp), seed: k * 7919 + seed_offset, threads: 2 };
             let out = emlt.render(scene, &job, &NoProgress).expect("render");
             assert!(out.image.all_finite(), "emlt: non-finite pixels");
             assert_eq!(out.counters.nonfinite_dropped, 0, "emlt: non-finite contributions");
@@ -44,10 +51,35 @@ pub fn emlt_renders(scene: &Scene, emlt: &Emlt, mpp: u64) -> (Vec<Image>, serde_
     (images, stats)
 }
 
-/// The share test's two grids: the power-checked 2×2 quadrants, and the 4×4 regions checked for
-/// |z| < 5 without a power claim (both asserted only if `assert_agreement`). Returns the worst |z|
-/// of each.
-pub fn share_test(what: &str, images: &[Image], reference: &Image, assert_agreement: bool) -> (f64, f64) {
+/// The outcome of [`share_test`]: the worst share |z| on the power-checked 2×2 quadrants and on
+/// the 4×4 regions, the χ² test of the 4×4 regions' shares, and the renders' 4×4 region means
+/// (`region_means_on`; for [`shares_chi2_false_failure_rate`]'s null model).
+#[derive(Clone, Debug)]
+pub struct ShareTest {
+    pub coarse_z: f64,
+    pub fine_z: f64,
+    pub chi2: SharesChi2,
+    pub regions: Vec<Vec<f64>>,
+}
+
+impl ShareTest {
+    /// Some part of the test rejects: a |z| ≥ `Z_CRITICAL` on either grid, or the χ².
+    pub fn fails(&self) -> bool {
+        self.coarse_z.max(self.fine_z) >= Z_CRITICAL || !self.chi2.passes()
+    }
+
+    /// One line: both grids' worst |z| and the χ².
+    pub fn summary(&self) -> String {
+        format!("worst |z| {:.2} (2×2) / {:.2} (4×4), {}", self.coarse_z, self.fine_z, self.chi2.summary())
+    }
+}
+
+/// The share test: the power-checked 2×2 quadrants, the 4×4 regions checked for |z| < 5 without a
+/// power claim, and the χ² of the 4×4 regions' shares (`image_shares_chi2`: p ≥
+/// `SHARES_CHI2_ALPHA`), all asserted only if `assert_agreement`. The χ² sees what the worst |z|
+/// can miss: a wrong chain moving a few per cent of the light between many regions at once
+/// (docs/mlt.md, "Issue 20, session 13").
+pub fn share_test(what: &str, images: &[Image], reference: &Image, assert_agreement: bool) -> ShareTest {
     let grids: Vec<(usize, Vec<Vec<f64>>)> =
         [COARSE, GRID].iter().map(|&g| (g, images.iter().map(|i| region_means_on(i, g)).collect())).collect();
     let mut worst = Vec::new();
@@ -62,10 +94,15 @@ pub fn share_test(what: &str, images: &[Image], reference: &Image, assert_agreem
         };
         worst.push(a.worst_z);
     }
+    let chi2 = image_shares_chi2(&grids[1].1, reference, GRID);
+    let regions = grids.into_iter().nth(1).expect("the 4×4 grid").1;
+    let test = ShareTest { coarse_z: worst[0], fine_z: worst[1], chi2, regions };
+    println!("{what}: {}", test.summary());
     if assert_agreement {
-        assert!(worst[1] < Z_CRITICAL, "{what}: the 4×4 region shares disagree (|z| = {:.2})", worst[1]);
+        assert!(test.fine_z < Z_CRITICAL, "{what}: the 4×4 region shares disagree (|z| = {:.2})", test.fine_z);
+        assert!(test.chi2.passes(), "{what}: the 4×4 region shares disagree by χ²: {}", test.chi2.summary());
     }
-    (worst[0], worst[1])
+    test
 }
 
 /// Prints each strategy's selected and accepted counts from a render's statistics.
@@ -80,10 +117,16 @@ pub fn print_strategies(what: &str, stats: &serde_json::Value) {
     println!("{what}: ensemble {}", stats["ensemble"]);
 }
 
-/// emlt's region shares on `name` at `SIZE`² against the committed reference (`share_test`), and
-/// the guided share of its guided strategies' proposals (≥ 1/2, asserted; each strategy named in
-/// `guided` must have made guided proposals). Returns the first render's statistics.
-pub fn emlt_agrees_with_reference(name: &str, emlt: &Emlt, mpp: u64, guided: &[&str]) -> serde_json::Value {
+/// emlt's region shares on `name` at `SIZE`² against the committed reference (`share_test`,
+/// asserted), and the guided share of its guided strategies' proposals (≥ 1/2, asserted; each
+/// strategy named in `guided` must have made guided proposals). Returns the share test and the
+/// first render's statistics.
+pub fn emlt_agrees_with_reference(
+    name: &str,
+    emlt: &Emlt,
+    mpp: u64,
+    guided: &[&str],
+) -> (ShareTest, serde_json::Value) {
     emlt_agrees_with_reference_at(name, (SIZE, SIZE), emlt, mpp, guided)
 }
 
@@ -94,13 +137,13 @@ pub fn emlt_agrees_with_reference_at(
     emlt: &Emlt,
     mpp: u64,
     guided: &[&str],
-) -> serde_json::Value {
+) -> (ShareTest, serde_json::Value) {
     let scene = scene_at(name, width, height);
     let (images, stats) = emlt_renders(&scene, emlt, mpp);
     let what = format!("emlt vs the reference on {name}");
     let ensemble = &stats["ensemble"];
     print_strategies(&what, &stats);
-    share_test(&what, &images, &reference(name), true);
+    let test = share_test(&what, &images, &reference(name), true);
     let share = ensemble["guided_share"].as_f64().expect("guided share");
     assert!(share >= 0.5, "{what}: only {share:.3} of the guided strategies' proposals were guided");
     for g in ensemble["guided"].as_array().into_iter().flatten() {
@@ -108,5 +151,5 @@ pub fn emlt_agrees_with_reference_at(
             assert!(g["guided"].as_u64().unwrap_or(0) > 0, "{what}: {} was never guided", g["name"]);
         }
     }
-    stats
+    (test, stats)
 }
