@@ -15,7 +15,11 @@ from the same sampler, and counting what it does:
   zero (Scene::sample_emitter_direction with test_visibility), *before* the BSDF is evaluated and
   whether or not the emitter faces the point; they are split below by what plexus does with the
   same sample: plexus traces one only when the emitter faces the point and the BSDF value there is
-  not zero (src/integrator/pt.rs), so the split says where the two counts differ;
+  not zero (src/integrator/pt.rs), so the split says where the two counts differ. The mirror makes
+  path.cpp's own call (test_visibility on) and repeats the sample without the test, tracing that
+  ray itself: at every vertex Mitsuba's call must have zeroed the sample exactly when this ray is
+  occluded (mismatches are counted and must be 0), and back-facing samples that Mitsuba's call
+  found occluded show that it traces those rays too;
 - path lengths: the histogram of bounce rays per sample, and how paths end (escaped, maximum depth,
   Russian roulette, zero throughput);
 - Russian roulette: rolls, and rolls where Mitsuba's 0.95 cap on the survival probability
@@ -88,6 +92,11 @@ class Tally:
         self.vertices = 0  # surface hits
         self.lengths = np.zeros(max_depth + 2, dtype=np.int64)  # bounce rays per sample
         self.ends = collections.Counter()
+        # Checks of the shadow-ray rule against Mitsuba's own sample_emitter_direction: samples where
+        # its occlusion result and this script's ray_test disagree (must be 0), and back-facing
+        # samples it found occluded (> 0 shows that it tests them).
+        self.rule_mismatches = 0
+        self.back_occluded = 0
         self.rr_rolls = 0
         self.rr_capped = 0  # rolls where min(..., 0.95) changed q (max(throughput) * eta^2 > 0.95)
         self.rr_no_roll_in_plexus = 0  # rolls where max(throughput) * eta^2 >= 1: plexus does not roll
@@ -180,22 +189,27 @@ def mirror_integrator_class(mi, dr):
                 ds = None
                 if active_em:
                     tally.nee_vertices += 1
-                    # Scene::sample_emitter_direction with test_visibility, written out so that its
-                    # occlusion query is counted: one ray_test whenever the sample's pdf is not 0.
-                    ds, em_weight = scene.sample_emitter_direction(si, sampler.next_2d(), False, True)
-                    active_em = ds.pdf != 0.0
-                    if active_em:
+                    u = sampler.next_2d()
+                    # path.cpp's call: Scene::sample_emitter_direction with test_visibility, which
+                    # traces an occlusion ray whenever the sample's pdf is not zero and sets the pdf
+                    # and value to zero if it is occluded.
+                    ds, em_weight = scene.sample_emitter_direction(si, u, True, True)
+                    # The same sample without the test, and that test done here, to count the ray
+                    # and to check the rule at every vertex: the call above zeroed the pdf exactly
+                    # when this ray is occluded, back-facing emitter samples included.
+                    ds0, weight0 = scene.sample_emitter_direction(si, u, False, True)
+                    if ds0.pdf != 0.0:
                         tally.shadow_rays += 1
-                        shadow_ray = si.spawn_ray_to(ds.p)
-                        facing = bool(dr.any(em_weight != 0.0))
-                        if scene.ray_test(shadow_ray, True):
-                            em_weight = mi.Color3f(0.0)
-                            ds.pdf = 0.0
+                        facing = bool(dr.any(weight0 != 0.0))
+                        occluded = bool(scene.ray_test(si.spawn_ray_to(ds0.p), True))
+                        tally.rule_mismatches += occluded != (ds.pdf == 0.0)
+                        tally.back_occluded += occluded and not facing
+                    active_em = ds.pdf != 0.0
                     wo = si.to_local(ds.d)
                 sample_1 = sampler.next_1d()
                 sample_2 = sampler.next_2d()
                 bsdf_val, bsdf_pdf, bs, bsdf_weight = bsdf.eval_pdf_sample(ctx, si, wo, sample_1, sample_2)
-                if active_em:
+                if ds is not None and ds0.pdf != 0.0:
                     # Split of the shadow ray by what plexus does with the same sample.
                     if not facing:
                         tally.shadow_back += 1
@@ -203,6 +217,7 @@ def mirror_integrator_class(mi, dr):
                         tally.shadow_bsdf_zero += 1
                     else:
                         tally.shadow_both += 1
+                if active_em:
                     mis_em = 1.0 if ds.delta else mis_weight(ds.pdf, bsdf_pdf, self.balance)
                     result = dr.fma(throughput, bsdf_val * em_weight * mis_em, result)
                 # BSDF sampling: the continuation.
@@ -319,6 +334,7 @@ def main():
                    shadow_back=t.shadow_back / n, shadow_bsdf_zero=t.shadow_bsdf_zero / n,
                    shadow_both=t.shadow_both / n, vertices=t.vertices / n, nee_vertices=t.nee_vertices / n,
                    lengths=(t.lengths / n).tolist(), ends={k: v / n for k, v in t.ends.items()},
+                   rule_mismatches=t.rule_mismatches, back_occluded=t.back_occluded, shadow_total=t.shadow_rays,
                    rr_rolls=t.rr_rolls / n, rr_capped=t.rr_capped / n, rr_no_roll_in_plexus=t.rr_no_roll_in_plexus / n)
         if args.check_control:
             control_xml = with_integrator(xml, f'<integrator type="path_mirror"><integer name="max_depth" '
@@ -343,6 +359,8 @@ def summary(name, r):
     v = r["validation"]
     text = (f"{name}: {r['samples']} samples in {r['python_seconds']:.0f} s; mirror vs path: image mean "
             f"{v[0]:+.2e}, largest pixel difference {v[1]:.2e} of the mean, {100 * v[2]:.3f}% of values differ")
+    text += (f"; shadow-ray rule: {r['rule_mismatches']} mismatches in {r['shadow_total']} rays, "
+             f"{r['back_occluded']} back-facing samples found occluded by Mitsuba's own test")
     if "control" in r:
         c = r["control"]
         text += f"; control (balance heuristic): {c[0]:+.2e}, {c[1]:.2e}, {100 * c[2]:.1f}% differ"
