@@ -308,6 +308,9 @@ def main():
     import mitsuba as mi
     import drjit as dr
     mi.set_variant("scalar_rgb")
+    # Mitsuba warns, on stdout, that Python integrators are slow in scalar variants: known, and the
+    # table goes to stdout.
+    mi.set_log_level(mi.LogLevel.Error)
     dr.set_thread_count(args.threads)
     mi.register_integrator("path_mirror", lambda props: mirror_integrator_class(mi, dr)(props))
     peers = load_peers()
