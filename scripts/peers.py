@@ -83,6 +83,19 @@ def variants(cc):
     return scenes
 
 
+def scene_xml(cc, name, depth, res=None):
+    """The Mitsuba 3 XML text both renderers read for scene `name` (a key of `variants`): Mitsuba's
+    `path` integrator at `depth` path edges (plexus's max_depth + 1), this script's resolution or
+    `res` (width, height). Shared with scripts/peers_path_lengths.py."""
+    scenes = variants(cc)
+    if name not in scenes:
+        sys.exit(f"peers.py: unknown scene {name}; known: {', '.join(scenes)}")
+    cfg = dict(scenes[name], depth=depth)
+    if res is not None:
+        cfg["res"] = res
+    return cc.mitsuba_xml(cfg["name"], cfg)
+
+
 def luminance(img):
     return 0.2126 * img[..., 0] + 0.7152 * img[..., 1] + 0.0722 * img[..., 2]
 
@@ -246,8 +259,7 @@ def main():
     started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     rows_by_scene = []
     for name in args.scenes.split(","):
-        cfg = dict(scenes[name], depth=args.depth + 1)
-        xml = cc.mitsuba_xml(cfg["name"], cfg)
+        xml = scene_xml(cc, name, args.depth + 1)
         with tempfile.NamedTemporaryFile("w", suffix=".xml", delete=False) as f:
             f.write(xml)
         try:
