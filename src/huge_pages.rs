@@ -241,7 +241,7 @@ mod tests {
             .all(|(i, (&f, &c))| f == c && f == (i as u32).wrapping_mul(2_654_435_761)));
         // Below and above the bounds: plain heap memory.
         let small = HugeArray::from_vec(vec![7u8; HUGE_PAGE_MIN_BYTES - 1]);
-        let large = HugeArray::from_par_iter(rayon::iter::repeatn(7u8, HUGE_PAGE_ARRAY_BYTES + 1));
+        let large = HugeArray::from_par_iter(rayon::iter::repeat_n(7u8, HUGE_PAGE_ARRAY_BYTES + 1));
         for a in [&small, &large] {
             assert!(!advised_for_huge_pages(a.as_ptr()), "a heap array advised");
             assert!(a.iter().all(|&x| x == 7));
