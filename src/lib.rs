@@ -4,13 +4,15 @@
 //! ray queries (Embree or the in-house BVH), `geometry` holds rays and hits, `sampling` holds every
 //! warp with its pdf and inverse, `scene` parses and builds scenes, `camera`/`material`/`light`
 //! sample and evaluate, `film` accumulates and writes images, `integrator` holds light transport,
-//! `stats` and `metrics` measure, `bench` times the accelerators and the path tracer.
+//! `stats` and `metrics` measure, `bench` times the accelerators and the path tracer, `huge_pages`
+//! places large randomly read arrays (textures, the BVH) on transparent huge pages.
 
 pub mod accel;
 pub mod bench;
 pub mod camera;
 pub mod film;
 pub mod geometry;
+mod huge_pages;
 pub mod input_file;
 pub mod integrator;
 pub mod interrupt;

@@ -15,6 +15,7 @@ use glam::Vec2;
 
 use crate::film::oiio::ReadImage;
 use crate::film::tonemap::srgb_eotf;
+use crate::huge_pages::advise_huge_pages;
 use crate::spectrum::Rgb;
 
 /// A decoded bitmap: linear RGB, row 0 at the top, every texel in [0, 1].
@@ -121,26 +122,6 @@ impl TexelImage {
         let n = self.width * self.height;
         let sum: glam::DVec3 = (0..n).map(|k| self.texel(k % self.width, k / self.width).as_dvec3()).sum();
         (sum / n.max(1) as f64).as_vec3()
-    }
-}
-
-/// Asks Linux to back the 2 MiB-aligned part of `v`'s (still untouched) allocation with huge pages,
-/// before it is filled. Bilinear lookups read texels at random places of a large image (every
-/// bounce off a textured surface); with 4 KiB pages most of them also miss the TLB (the door's
-/// images span ~7,500 pages). A hint only: ignored where unsupported or refused, and it never
-/// changes the contents.
-fn advise_huge_pages<T>(v: &Vec<T>) {
-    #[cfg(target_os = "linux")]
-    {
-        const HUGE_PAGE: usize = 2 << 20;
-        let start = v.as_ptr() as usize;
-        let end = start + v.capacity() * std::mem::size_of::<T>();
-        let (first, last) = (start.next_multiple_of(HUGE_PAGE), end & !(HUGE_PAGE - 1));
-        if last > first {
-            // SAFETY: [first, last) lies inside the allocation `v` owns; MADV_HUGEPAGE only
-            // changes how the kernel backs those pages, not what they hold or who may use them.
-            unsafe { libc::madvise(first as *mut libc::c_void, last - first, libc::MADV_HUGEPAGE) };
-        }
     }
 }
 
