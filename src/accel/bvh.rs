@@ -135,7 +135,7 @@ impl Bvh {
     /// first, and popped entries whose box starts beyond the (scaled) current `t_max` are skipped:
     /// they cannot hold a nearer hit. Without it (occlusion, which stops at the first hit and never
     /// lowers `t_max`) they are visited in slot order, which spares the sort.
-    /// With `AVX2` the node test is `triangle::slab8_avx`: only instantiated inside the
+    /// With `AVX2` the node test is `triangle::slab8_ray_avx`: only instantiated inside the
     /// `#[target_feature(enable = "avx2,fma")]` functions `closest_avx2` and `any_avx2`.
     #[inline(always)]
     fn traverse<const NEAREST_FIRST: bool, const AVX2: bool>(
@@ -150,9 +150,16 @@ impl Bvh {
         let t_min = ray.t_min;
         let mut t_max = ray.t_max;
         let scale = triangle::far_scale();
+        // Popped entries farther than this are skipped (`t_max` scaled as the slab test's far
+        // distances are); recomputed only when `t_max` changes.
+        let mut t_far = t_max * scale;
+        // The slab test's per-ray constants, once per ray rather than at each node.
+        #[cfg(target_arch = "x86_64")]
+        let slab_ray = triangle::SlabRay::new(pre, t_min);
         // Not initialised: a memset of its 4.7 kB per ray would cost more than a short ray's
         // traversal. Only entries below `sp` are read, and each was written before.
         let mut stack = [MaybeUninit::<(Entry, f32)>::uninit(); STACK];
+        let stack = stack.as_mut_ptr();
         let mut sp = 0;
         let mut cur: Entry = 0;
         'visit: loop {
@@ -162,56 +169,79 @@ impl Bvh {
                 // SAFETY: `child` is 0 (the tree is not empty) or an interior slot's child index,
                 // which the builder writes only below `nodes.len()` (`tree_invariants_hold`).
                 let node = unsafe { self.nodes.get_unchecked(child) };
-                #[cfg(target_arch = "x86_64")]
-                let (mut mask, near) = if AVX2 {
-                    // SAFETY: `AVX2` traversals run only inside `closest_avx2` and `any_avx2`, which
-                    // are called only when `self.avx2`, i.e. the CPU has AVX2 and FMA.
-                    unsafe { triangle::slab8_avx(pre, &node.bounds, t_min, t_max) }
-                } else {
-                    triangle::slab8(pre, &node.bounds, t_min, t_max)
-                };
-                #[cfg(not(target_arch = "x86_64"))]
-                let (mut mask, near) = triangle::slab8(pre, &node.bounds, t_min, t_max);
+                // The used slots whose box the ray overlaps, and every slot's entry distance.
                 // Unused slots have empty boxes, which no ray overlaps; masked all the same, since
                 // following one would read past the arrays.
-                mask &= (0..WIDTH).fold(0, |m, k| m | ((node.count[k] != EMPTY) as u32) << k);
+                #[cfg(target_arch = "x86_64")]
+                let (mut mask, near) = if AVX2 {
+                    let mut near = [0f32; WIDTH];
+                    // SAFETY: `AVX2` traversals run only inside `closest_avx2` and `any_avx2`, which
+                    // are called only when `self.avx2`, i.e. the CPU has AVX2 and FMA.
+                    let mask =
+                        unsafe { triangle::slab8_ray_avx(&slab_ray, &node.bounds, &node.count, t_max, &mut near) };
+                    (mask, near)
+                } else {
+                    let (mask, near) = triangle::slab8(pre, &node.bounds, t_min, t_max);
+                    (mask & used_slots(node), near)
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let (mut mask, near) = {
+                    let (mask, near) = triangle::slab8(pre, &node.bounds, t_min, t_max);
+                    (mask & used_slots(node), near)
+                };
                 let entry = |slot: usize| (node.child[slot] as Entry | (node.count[slot] as Entry) << 32, near[slot]);
-                if !NEAREST_FIRST {
+                if mask != 0 {
+                    let first = entry(mask.trailing_zeros() as usize);
+                    mask &= mask - 1;
                     if mask == 0 {
-                        // Fall through to the stack.
-                    } else {
-                        cur = entry(mask.trailing_zeros() as usize).0;
-                        mask &= mask - 1;
+                        // One child overlapped (the most frequent case): no stack traffic.
+                        cur = first.0;
+                        continue 'visit;
+                    }
+                    debug_assert!(sp + WIDTH <= STACK);
+                    // SAFETY (the stack writes and reads below): a visit of a node at depth `d`
+                    // finds at most `(WIDTH - 1) * d` entries on the stack (each ancestor's visit
+                    // left at most `WIDTH - 1`), and pushes at most `WIDTH` before it pops one; the
+                    // builder keeps `d < MAX_DEPTH`, so `sp + WIDTH <= STACK` here.
+                    if !NEAREST_FIRST {
+                        // Slot order: the first slot is visited now, the rest pushed.
                         while mask != 0 {
-                            stack[sp] = MaybeUninit::new(entry(mask.trailing_zeros() as usize));
+                            unsafe { stack.add(sp).write(MaybeUninit::new(entry(mask.trailing_zeros() as usize))) };
                             sp += 1;
                             mask &= mask - 1;
                         }
+                        cur = first.0;
                         continue 'visit;
                     }
-                } else {
-                    let mut hits = [(0 as Entry, 0f32); WIDTH];
-                    let mut k = 0;
+                    // Nearest first: the entries are insertion-sorted straight onto the stack,
+                    // farthest at the bottom, so that the nearest is on top; equal distances
+                    // keep slot order (the earlier slot above). An entry moves up past those
+                    // that are to be visited before it.
+                    let base = sp;
+                    self.prefetch_entry(first.0);
+                    unsafe { stack.add(sp).write(MaybeUninit::new(first)) };
+                    sp += 1;
                     while mask != 0 {
                         let e = entry(mask.trailing_zeros() as usize);
                         mask &= mask - 1;
-                        // Insertion by distance, nearest first.
-                        let mut j = k;
-                        while j > 0 && hits[j - 1].1 > e.1 {
-                            hits[j] = hits[j - 1];
-                            j -= 1;
+                        self.prefetch_entry(e.0);
+                        let mut j = sp;
+                        unsafe {
+                            while j > base {
+                                let above = (*stack.add(j - 1)).assume_init();
+                                if above.1 > e.1 {
+                                    break;
+                                }
+                                stack.add(j).write(MaybeUninit::new(above));
+                                j -= 1;
+                            }
+                            stack.add(j).write(MaybeUninit::new(e));
                         }
-                        hits[j] = e;
-                        k += 1;
+                        sp += 1;
                     }
-                    if k > 0 {
-                        for &h in hits[1..k].iter().rev() {
-                            stack[sp] = MaybeUninit::new(h);
-                            sp += 1;
-                        }
-                        cur = hits[0].0;
-                        continue 'visit;
-                    }
+                    sp -= 1;
+                    cur = unsafe { (*stack.add(sp)).assume_init().0 };
+                    continue 'visit;
                 }
             } else {
                 let (t, stop) = leaf(child, count as usize, t_max);
@@ -219,12 +249,13 @@ impl Bvh {
                     return;
                 }
                 t_max = t;
+                t_far = t_max * scale;
             }
             while sp > 0 {
                 sp -= 1;
                 // SAFETY: every entry below `sp` was written by a push.
-                let (e, near) = unsafe { stack[sp].assume_init() };
-                if !NEAREST_FIRST || near <= t_max * scale {
+                let (e, near) = unsafe { (*stack.add(sp)).assume_init() };
+                if !NEAREST_FIRST || near <= t_far {
                     cur = e;
                     continue 'visit;
                 }
@@ -232,6 +263,40 @@ impl Bvh {
             return;
         }
     }
+}
+
+impl Bvh {
+    /// Asks the cache for what visiting `e` reads first, when a node visit finds two or more
+    /// children overlapped: the child node's four cache lines, or the three lines that hold a
+    /// leaf's first packet. Bounce rays go to random places in the tree, so most of these are
+    /// misses; the loads start while the nearer children are visited. A prefetch never faults,
+    /// so the addresses are computed without bounds checks (`wrapping_add`).
+    #[inline(always)]
+    fn prefetch_entry(&self, e: Entry) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let (child, count) = (e as u32 as usize, (e >> 32) as u32);
+            let (p, lines) = if count == 0 {
+                (self.nodes.as_ptr().wrapping_add(child).cast::<i8>(), 4)
+            } else {
+                (self.packets.as_ptr().wrapping_add(child).cast::<i8>(), 3)
+            };
+            for line in 0..lines {
+                // SAFETY: SSE is part of the x86_64 baseline, and a prefetch never faults.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line)) };
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = e;
+    }
+}
+
+/// The mask of a node's used slots (the baseline node test's; `triangle::slab8_ray_avx` masks
+/// them itself).
+#[inline(always)]
+fn used_slots(node: &Node) -> u32 {
+    (0..WIDTH).fold(0, |m, k| m | ((node.count[k] != EMPTY) as u32) << k)
 }
 
 /// Whether a ray's interval is usable (a NaN or reversed interval hits nothing).

@@ -473,7 +473,7 @@ fn slab4_rows(pre: &RayPre, row: impl Fn(usize) -> Vec4, t_min: f32, t_max: f32)
 }
 
 /// [`slab4_rows`] on the eight boxes of an 8-wide node (`rows[i]` as `row(i)` there, eight lanes),
-/// in baseline x86-64 code: each half of the node by the SSE test. [`slab8_avx`] is the same test in one AVX
+/// in baseline x86-64 code: each half of the node by the SSE test. [`slab8_ray_avx`] is the same test in one AVX
 /// pass, bit for bit.
 #[inline(always)]
 pub fn slab8(pre: &RayPre, rows: &[[f32; 8]; 6], t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
@@ -489,34 +489,74 @@ pub fn slab8(pre: &RayPre, rows: &[[f32; 8]; 6], t_min: f32, t_max: f32) -> (u32
 /// [`slab4_rows`]: `vmaxps(a, b)` is `a > b ? a : b`, returning `b` when either is NaN, which is
 /// `select(a.cmpgt(b), a, b)` exactly (likewise `vminps` and `cmplt`), so every lane's result is
 /// [`slab8`]'s bit for bit.
-#[cfg(target_arch = "x86_64")]
+/// (Tests only: traversals call [`slab8_ray_avx`].)
+#[cfg(all(test, target_arch = "x86_64"))]
 #[target_feature(enable = "avx2,fma")]
 #[inline]
 pub fn slab8_avx(pre: &RayPre, rows: &[[f32; 8]; 6], t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+    let mut near = [0.0f32; 8];
+    let mask = slab8_ray_avx(&SlabRay::new(pre, t_min), rows, &[0; 8], t_max, &mut near);
+    (mask, near)
+}
+
+/// The per-ray constants of [`slab8_ray_avx`], computed once per traversal rather than at each
+/// node: the origin, `1/d` and `t_min` in all eight lanes, and the row of each axis's near and far
+/// planes (which depend on the sign of `d` only), so that a node visit neither branches on the
+/// signs nor broadcasts anything.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+pub struct SlabRay {
+    o: [[f32; 8]; 3],
+    inv: [[f32; 8]; 3],
+    t_min: [f32; 8],
+    near_row: [usize; 3],
+    far_row: [usize; 3],
+}
+
+impl SlabRay {
+    #[inline]
+    pub fn new(pre: &RayPre, t_min: f32) -> SlabRay {
+        let near_row = [0, 1, 2].map(|axis| if pre.neg[axis] { axis + 3 } else { axis });
+        SlabRay {
+            o: [0, 1, 2].map(|axis| [pre.o[axis]; 8]),
+            inv: [0, 1, 2].map(|axis| [pre.inv_d[axis]; 8]),
+            t_min: [t_min; 8],
+            near_row,
+            far_row: near_row.map(|row| if row < 3 { row + 3 } else { row - 3 }),
+        }
+    }
+}
+
+/// The AVX node test: `slab8_avx` with the ray's constants precomputed (`SlabRay`) and the unused slots of the node
+/// (`count[k] == u32::MAX`) masked off: writes the eight entry distances to `near` and returns the
+/// mask of the used slots whose box the ray overlaps. The same arithmetic as [`slab4_rows`], in
+/// the same order, so the mask and distances are [`slab8`]'s bit for bit.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+pub fn slab8_ray_avx(ray: &SlabRay, rows: &[[f32; 8]; 6], count: &[u32; 8], t_max: f32, near: &mut [f32; 8]) -> u32 {
     use std::arch::x86_64::*;
-    let load = |i: usize| {
-        // SAFETY: `rows[i]` (i < 6, else the index panics) is eight contiguous f32, exactly what
-        // the unaligned 256-bit load reads.
-        unsafe { _mm256_loadu_ps(rows[i].as_ptr()) }
-    };
-    let mut near = _mm256_set1_ps(t_min);
+    // SAFETY (all loads and the store): each pointer is to eight contiguous f32 or u32, what the
+    // unaligned 256-bit access reads or writes; `near_row` and `far_row` hold rows below 6
+    // (`SlabRay::new`).
+    let row = |i: usize| unsafe { _mm256_loadu_ps(rows.as_ptr().add(i).cast()) };
+    let splat = |v: &[f32; 8]| unsafe { _mm256_load_ps(v.as_ptr()) };
+    let mut n8 = splat(&ray.t_min);
     let mut far = _mm256_set1_ps(t_max);
     let scale = _mm256_set1_ps(far_scale());
     for axis in 0..3 {
-        let (lo, hi) = (load(axis), load(axis + 3));
-        let (n, f) = if pre.neg[axis] { (hi, lo) } else { (lo, hi) };
-        let o = _mm256_set1_ps(pre.o[axis]);
-        let inv = _mm256_set1_ps(pre.inv_d[axis]);
+        let (n, f) = (row(ray.near_row[axis]), row(ray.far_row[axis]));
+        let (o, inv) = (splat(&ray.o[axis]), splat(&ray.inv[axis]));
         let tn = _mm256_mul_ps(_mm256_sub_ps(n, o), inv);
         let tf = _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(f, o), inv), scale);
-        near = _mm256_max_ps(tn, near);
+        n8 = _mm256_max_ps(tn, n8);
         far = _mm256_min_ps(tf, far);
     }
-    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
-    let mut out = [0.0f32; 8];
-    // SAFETY: `out` is eight f32, what the unaligned 256-bit store writes.
-    unsafe { _mm256_storeu_ps(out.as_mut_ptr(), near) };
-    (mask, out)
+    let unused = unsafe { _mm256_cmpeq_epi32(_mm256_loadu_si256(count.as_ptr().cast()), _mm256_set1_epi32(-1)) };
+    let hit = _mm256_andnot_ps(_mm256_castsi256_ps(unused), _mm256_cmp_ps::<_CMP_LE_OQ>(n8, far));
+    unsafe { _mm256_storeu_ps(near.as_mut_ptr(), n8) };
+    _mm256_movemask_ps(hit) as u32
 }
 
 #[cfg(test)]
@@ -537,6 +577,35 @@ mod tests {
             assert_eq!(avx_near.map(f32::to_bits), near.map(f32::to_bits));
         }
         mask != 0
+    }
+
+    /// The AVX node test leaves out the slots marked unused (`count == u32::MAX`) even where their
+    /// box is overlapped, and reports the other slots as `slab8` does.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn node_test_masks_unused_slots() {
+        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
+            return;
+        }
+        let ray = Ray::new(Vec3::new(0.1, 0.2, -3.0), Vec3::new(0.05, -0.02, 1.0));
+        let pre = RayPre::new(&ray).unwrap();
+        // Slot k's box is overlapped for even k only; slots 2 and 5 are unused.
+        let mut rows = [[0.0f32; 8]; 6];
+        for k in 0..8 {
+            let c = if k % 2 == 0 { Vec3::ZERO } else { Vec3::new(5.0, 5.0, 0.0) } + Vec3::splat(0.01 * k as f32);
+            for (axis, row) in rows.iter_mut().enumerate() {
+                row[k] = if axis < 3 { c[axis] - 0.5 } else { c[axis - 3] + 0.5 };
+            }
+        }
+        let mut count = [0u32; 8];
+        (count[2], count[5]) = (u32::MAX, u32::MAX);
+        let (mask, near) = slab8(&pre, &rows, 0.0, f32::INFINITY);
+        assert_eq!(mask, 0b0101_0101);
+        let mut avx_near = [0.0f32; 8];
+        // SAFETY: the CPU has AVX2 and FMA (checked above).
+        let avx_mask = unsafe { slab8_ray_avx(&SlabRay::new(&pre, 0.0), &rows, &count, f32::INFINITY, &mut avx_near) };
+        assert_eq!(avx_mask, 0b0101_0001);
+        assert_eq!(avx_near.map(f32::to_bits), near.map(f32::to_bits));
     }
 
     fn hit(ray: &Ray, v: [Vec3; 3]) -> Option<(f32, f32, f32)> {
