@@ -297,6 +297,13 @@ pub fn chi2_survival(x: f64, dof: f64) -> f64 {
     statrs::function::gamma::checked_gamma_ur(0.5 * dof, 0.5 * x).unwrap_or(0.0)
 }
 
+/// The x with P(X ≥ x) = `alpha` for X chi-square distributed with `dof` (> 0) degrees of freedom:
+/// [`chi2_survival`]'s inverse (statrs), the bound a statistic may reach at significance `alpha`.
+pub fn chi2_upper_quantile(alpha: f64, dof: f64) -> f64 {
+    use statrs::distribution::{ChiSquared, ContinuousCDF};
+    ChiSquared::new(dof).map_or(f64::NAN, |d| d.inverse_cdf(1.0 - alpha))
+}
+
 // ---------------------------------------------------------------------------------------------
 // Quadrature
 // ---------------------------------------------------------------------------------------------
@@ -473,6 +480,19 @@ mod tests {
         }
         assert_eq!(chi2_survival(0.0, 5.0), 1.0);
         assert_eq!(chi2_survival(3.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn upper_quantile_inverts_the_survival_function() {
+        // The tables' 1-dof and 10-dof 5% points, then the round trip where the share tests use it
+        // (α = 1e-4, non-integer ν from Box's approximation).
+        assert!((chi2_upper_quantile(0.05, 1.0) - 3.841_459).abs() < 1e-5);
+        assert!((chi2_upper_quantile(0.05, 10.0) - 18.307_04).abs() < 1e-4);
+        for dof in [1.0, 4.3, 8.0, 15.0, 40.5] {
+            let x = chi2_upper_quantile(1e-4, dof);
+            let p = chi2_survival(x, dof);
+            assert!((p - 1e-4).abs() < 1e-8, "ν = {dof}: Q({x}) = {p}");
+        }
     }
 
     #[test]

@@ -259,6 +259,16 @@ pub fn relative_noise_of_region_means_on(image: &Image, grid: usize) -> Vec<f64>
     (0..regions).map(|r| (sq[r] / (6.0 * diffs[r] as f64) / pixels[r] as f64).sqrt() / mean).collect()
 }
 
+/// A committed reference image's region shares on a `grid`×`grid` grid (region mean over image
+/// mean) and each share's relative noise estimated from its pixels
+/// ([`relative_noise_of_region_means_on`]): the reference side of the share tests.
+fn reference_shares_on(reference: &Image, grid: usize) -> (Vec<f64>, Vec<f64>) {
+    let regions = grid * grid;
+    let means = region_means_on(reference, grid);
+    let shares = means[..regions].iter().map(|m| m / means[regions]).collect();
+    (shares, relative_noise_of_region_means_on(reference, grid))
+}
+
 /// Region shares of a method's renders against one committed reference image (any resolution of
 /// the same camera: the film's box filter makes a region's mean independent of the pixel count),
 /// the reference's own noise estimated from its pixels ([`relative_noise_of_region_means`]) as the
@@ -269,9 +279,7 @@ pub fn relative_noise_of_region_means_on(image: &Image, grid: usize) -> Vec<f64>
 pub fn image_share_agreement(method: &[Vec<f64>], reference: &Image, grid: usize) -> ShareAgreement {
     let regions = grid * grid;
     assert_eq!(method[0].len(), regions + 1, "the method's regions are not {grid}×{grid}");
-    let means = region_means_on(reference, grid);
-    let reference_shares: Vec<f64> = means[..regions].iter().map(|m| m / means[regions]).collect();
-    let noise = relative_noise_of_region_means_on(reference, grid);
+    let (reference_shares, noise) = reference_shares_on(reference, grid);
     let (ma, va) = mean_and_variance_of_mean(&shares(method));
     let sd: Vec<f64> = (0..regions).map(|r| (va[r] + noise[r] * noise[r]).sqrt()).collect();
     let z: Vec<f64> = (0..regions).map(|r| (ma[r] - reference_shares[r]) / sd[r]).collect();
@@ -332,20 +340,7 @@ pub struct SharesChi2 {
 impl SharesChi2 {
     /// The T at which p = `SHARES_CHI2_ALPHA`: the (1 − α) quantile of a·χ²_ν.
     pub fn bound(&self) -> f64 {
-        let survival = |x: f64| plexus::sampling::chi2::chi2_survival(x, self.dof);
-        let (mut lo, mut hi) = (0.0, self.dof.max(1.0));
-        while survival(hi) > SHARES_CHI2_ALPHA {
-            hi *= 2.0;
-        }
-        for _ in 0..100 {
-            let mid = 0.5 * (lo + hi);
-            if survival(mid) > SHARES_CHI2_ALPHA {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        self.scale * hi
+        self.scale * plexus::sampling::chi2::chi2_upper_quantile(SHARES_CHI2_ALPHA, self.dof)
     }
 
     /// The test passes: p ≥ `SHARES_CHI2_ALPHA`.
@@ -451,9 +446,8 @@ pub fn shares_chi2(method: &[Vec<f64>], reference: &[f64], reference_variance: &
 pub fn image_shares_chi2(method: &[Vec<f64>], reference: &Image, grid: usize) -> SharesChi2 {
     let regions = grid * grid;
     assert_eq!(method[0].len(), regions + 1, "the method's regions are not {grid}×{grid}");
-    let means = region_means_on(reference, grid);
-    let reference_shares: Vec<f64> = means[..regions].iter().map(|m| m / means[regions]).collect();
-    let variance: Vec<f64> = relative_noise_of_region_means_on(reference, grid).iter().map(|n| n * n).collect();
+    let (reference_shares, noise) = reference_shares_on(reference, grid);
+    let variance: Vec<f64> = noise.iter().map(|n| n * n).collect();
     shares_chi2(&shares(method), &reference_shares, &variance)
 }
 
@@ -505,9 +499,8 @@ pub fn image_shares_chi2_false_failure_rate(
     seed: u64,
 ) -> (f64, f64) {
     let regions = grid * grid;
-    let means = region_means_on(reference, grid);
-    let y: Vec<f64> = means[..regions].iter().map(|m| m / means[regions]).collect();
-    let u: Vec<f64> = relative_noise_of_region_means_on(reference, grid).iter().map(|n| n * n).collect();
+    let (y, noise) = reference_shares_on(reference, grid);
+    let u: Vec<f64> = noise.iter().map(|n| n * n).collect();
     let s = shares(method);
     let (mean, _) = mean_and_variance_of_mean(&s);
     let k = s.len() as f64;
