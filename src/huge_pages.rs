@@ -1,8 +1,8 @@
-//! Transparent huge pages for large arrays that are read at random places: textures' texels and
-//! the BVH's nodes, leaf packets and ids. With 4 KiB pages such reads miss the TLB as well as the
-//! cache (a 2 MiB page covers 512 times as much); Linux backs memory with 2 MiB pages where it is
-//! asked to (`madvise(MADV_HUGEPAGE)`, which a `transparent_hugepage/enabled` of `madvise`
-//! requires) and the region is 2 MiB-aligned. Hints only: where they are refused or unsupported,
+//! Transparent huge pages for large arrays that are read at random places: textures' texels,
+//! meshes' positions and indices, and the BVH's nodes, leaf packets and ids. With 4 KiB pages such
+//! reads miss the TLB as well as the cache (a 2 MiB page covers 512 times as much); Linux backs
+//! memory with 2 MiB pages where it is asked to (`madvise(MADV_HUGEPAGE)`, which a
+//! `transparent_hugepage/enabled` of `madvise` requires) and the region is 2 MiB-aligned. Hints only: where they are refused or unsupported,
 //! the memory and its contents are the same, only the page size differs.
 
 use std::mem::MaybeUninit;
@@ -158,6 +158,18 @@ impl<T: Copy> HugeArray<T> {
             Storage::Heap(v) => v.capacity() * std::mem::size_of::<T>(),
             Storage::Mapped { bytes, .. } => *bytes,
         }
+    }
+}
+
+impl<T: Copy + Send + Sync> Clone for HugeArray<T> {
+    fn clone(&self) -> Self {
+        HugeArray::from_vec(self.to_vec())
+    }
+}
+
+impl<T: Copy + std::fmt::Debug> std::fmt::Debug for HugeArray<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.iter()).finish()
     }
 }
 
