@@ -2,8 +2,9 @@
 //! meshes' positions and indices, and the BVH's nodes, leaf packets and ids. With 4 KiB pages such
 //! reads miss the TLB as well as the cache (a 2 MiB page covers 512 times as much); Linux backs
 //! memory with 2 MiB pages where it is asked to (`madvise(MADV_HUGEPAGE)`, which a
-//! `transparent_hugepage/enabled` of `madvise` requires) and the region is 2 MiB-aligned. Hints only: where they are refused or unsupported,
-//! the memory and its contents are the same, only the page size differs.
+//! `transparent_hugepage/enabled` of `madvise` requires) and the region is 2 MiB-aligned. Hints
+//! only: where they are refused or unsupported, the memory and its contents are the same, only the
+//! page size differs.
 
 use std::mem::MaybeUninit;
 use std::ops::{Deref, DerefMut};
