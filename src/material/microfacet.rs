@@ -101,7 +101,7 @@ impl Ggx {
     ///
     /// What remains is the disk point's own f32 rounding, which near the disk's rim at grazing
     /// incidence moves h by up to ~ε/α (`tests_precision`).
-    #[inline]
+    #[inline(always)]
     pub fn sample_visible(&self, wo: Vec3, u: [f32; 2]) -> Vec3 {
         let (vh, t1, t2) = self.vndf_basis_f32(wo);
         let r = u[0].sqrt();
