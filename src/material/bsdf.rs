@@ -19,6 +19,7 @@ pub struct Bsdf {
     pub two_sided: bool,
 }
 
+#[inline]
 fn mirror(w: Vec3) -> Vec3 {
     Vec3::new(w.x, w.y, -w.z)
 }
@@ -56,12 +57,13 @@ impl Bsdf {
         self.material.pdf(wo, wi, mode)
     }
     /// `Material::eval_pdf` under the side rule.
-    #[inline]
+    #[inline(always)]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> (Rgb, f32) {
         let (wo, wi) = self.oriented(wo, wi);
         self.material.eval_pdf(wo, wi, mode)
     }
     /// `Material::sample` under the side rule.
+    #[inline(always)]
     pub fn sample(&self, wo: Vec3, u: [f32; BSDF_SAMPLE_DIMS], mode: TransportMode) -> Option<BsdfSample> {
         if self.flips(wo) {
             let mut s = self.material.sample(mirror(wo), u, mode)?;
@@ -97,6 +99,7 @@ impl Bsdf {
         let (wo, _) = self.oriented(wo, wo);
         self.material.lobe_probabilities(wo)
     }
+    #[inline]
     pub fn is_specular(&self) -> bool {
         self.material.is_specular()
     }

@@ -13,12 +13,17 @@ pub fn eval(ggx: &Ggx, eta: Rgb, k: Rgb, wo: Vec3, wi: Vec3) -> Rgb {
 }
 
 /// The BRDF and the sampling density at once (they share the half vector, D and Λ(wo)).
-#[inline]
+#[inline(always)]
 pub fn eval_pdf(ggx: &Ggx, eta: Rgb, k: Rgb, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-    ggx.reflection(wo, wi).map_or((Rgb::ZERO, 0.0), |r| (brdf(&r, eta, k, wo), r.pdf()))
+    // A match, not `map_or`: the generic `map_or` stayed out of line (~1% of the door's time in
+    // perf), returning the pair through memory.
+    match ggx.reflection(wo, wi) {
+        Some(r) => (brdf(&r, eta, k, wo), r.pdf()),
+        None => (Rgb::ZERO, 0.0),
+    }
 }
 
-#[inline]
+#[inline(always)]
 fn brdf(r: &GgxReflection, eta: Rgb, k: Rgb, wo: Vec3) -> Rgb {
     fresnel_conductor(wo.dot(r.h), eta, k) * r.brdf()
 }

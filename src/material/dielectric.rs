@@ -15,12 +15,14 @@ pub const REFRACT: usize = 1;
 
 /// Selection probabilities [F, 1 − F] for `wo` on either side (F = 1 under total internal
 /// reflection).
+#[inline]
 pub fn lobe_probabilities(ior: f32, wo: Vec3) -> [f32; 2] {
     let f = fresnel_dielectric(wo.z, ior).reflectance;
     [f, 1.0 - f]
 }
 
 /// The direction of lobe `t`; `None` for refraction under total internal reflection.
+#[inline]
 pub fn sample(ior: f32, t: usize, wo: Vec3) -> Option<Vec3> {
     if t == REFLECT {
         Some(reflect_z(wo))
@@ -32,6 +34,7 @@ pub fn sample(ior: f32, t: usize, wo: Vec3) -> Option<Vec3> {
 /// f·|cos θi| of lobe `t`: F for reflection; (1 − F) for refraction, divided by η_t²/η_i² in
 /// radiance transport (radiance is compressed into the smaller solid angle of the denser side;
 /// importance is not, Veach 1997 Sec. 5.2).
+#[inline]
 pub fn weight(ior: f32, t: usize, wo: Vec3, mode: TransportMode) -> Rgb {
     let fr = fresnel_dielectric(wo.z, ior);
     if t == REFLECT {
@@ -46,6 +49,7 @@ pub fn weight(ior: f32, t: usize, wo: Vec3, mode: TransportMode) -> Rgb {
 
 /// η_t/η_i crossed by lobe `t` from the side of `wo`: the `eta_ti` whose square `weight` divides
 /// by in radiance transport for refraction; 1 for reflection.
+#[inline]
 pub fn eta(ior: f32, t: usize, wo: Vec3) -> f32 {
     if t == REFLECT {
         1.0

@@ -7,6 +7,7 @@ use crate::sampling::{invert_cosine_hemisphere, pdf_cosine_hemisphere, sample_co
 use crate::spectrum::Rgb;
 
 /// f(wo, wi) = ρ/π when both directions are above the horizon.
+#[inline]
 pub fn eval(reflectance: Rgb, wo: Vec3, wi: Vec3) -> Rgb {
     if wo.z <= 0.0 || wi.z <= 0.0 {
         return Rgb::ZERO;
@@ -15,6 +16,7 @@ pub fn eval(reflectance: Rgb, wo: Vec3, wi: Vec3) -> Rgb {
 }
 
 /// Cosine-weighted direction; `None` on the horizon itself (cos θ = 0 carries no energy).
+#[inline(always)]
 pub fn sample(wo: Vec3, u: [f32; 2]) -> Option<Vec3> {
     if wo.z <= 0.0 {
         return None;
@@ -24,6 +26,7 @@ pub fn sample(wo: Vec3, u: [f32; 2]) -> Option<Vec3> {
 }
 
 /// Solid-angle density of `sample`.
+#[inline]
 pub fn pdf(wo: Vec3, wi: Vec3) -> f32 {
     if wo.z <= 0.0 {
         return 0.0;

@@ -175,7 +175,7 @@ impl Material {
     /// `(eval, pdf)` at once, what a light sample weighted by MIS needs: the two share the half
     /// vector, D and Λ of a GGX lobe and the lobe probabilities of a mixture, computed once here
     /// (equal to the separate calls up to rounding; `tests::eval_pdf_is_eval_and_pdf`).
-    #[inline]
+    #[inline(always)]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> (Rgb, f32) {
         if !valid_pair(wo, wi) {
             return (Rgb::ZERO, 0.0);
@@ -185,7 +185,7 @@ impl Material {
 
     /// `eval_pdf` for a pair that passed `valid_pair`; `probs` are the lobe probabilities at `wo`
     /// when the caller has them already.
-    #[inline]
+    #[inline(always)]
     fn eval_pdf_valid(&self, wo: Vec3, wi: Vec3, mode: TransportMode, probs: Option<[f32; MAX_LOBES]>) -> (Rgb, f32) {
         match *self {
             Material::Diffuse { reflectance } => (diffuse::eval(reflectance, wo, wi), diffuse::pdf(wo, wi)),
@@ -199,6 +199,7 @@ impl Material {
         }
     }
     /// Draws `wi` given `wo` from the uniforms `u` (`u[0]` lobe, `u[1]`,`u[2]` direction).
+    #[inline(always)]
     pub fn sample(&self, wo: Vec3, u: [f32; BSDF_SAMPLE_DIMS], mode: TransportMode) -> Option<BsdfSample> {
         if !wo.is_finite() || wo.z == 0.0 {
             return None;
@@ -223,6 +224,7 @@ impl Material {
     }
     /// Whether every lobe is a delta (mirror, smooth dielectric): no light-source connection can
     /// be made at such a vertex.
+    #[inline]
     pub fn is_specular(&self) -> bool {
         matches!(self, Material::Mirror { .. } | Material::Dielectric { .. })
     }
@@ -232,6 +234,7 @@ impl Material {
     /// Number of lobes (entries of `lobe_probabilities` in use; `BsdfSample::lobe` indexes them):
     /// Diffuse, Mirror, RoughConductor 1; Dielectric 2 (0 reflection, 1 refraction); RoughPlastic 2
     /// (0 specular coating, 1 diffuse base).
+    #[inline]
     pub fn lobe_count(&self) -> usize {
         match self {
             Material::Diffuse { .. } | Material::Mirror { .. } | Material::RoughConductor { .. } => 1,
@@ -242,6 +245,7 @@ impl Material {
     /// Selection probabilities α_t of the lobes given `wo` (entries past `lobe_count` are 0). The
     /// single helper behind `sample` (lobe t is chosen when u[0] falls in [α_0 + … + α_{t−1},
     /// α_0 + … + α_t)), `pdf` (the mixture Σ α_t p_t) and `invert` (Eq. 41–44).
+    #[inline]
     pub fn lobe_probabilities(&self, wo: Vec3) -> [f32; MAX_LOBES] {
         match *self {
             Material::Diffuse { .. } | Material::Mirror { .. } | Material::RoughConductor { .. } => [1.0, 0.0],
@@ -252,12 +256,14 @@ impl Material {
     }
 
     /// Whether lobe `t` is a delta distribution (a discrete choice of direction).
+    #[inline]
     pub fn lobe_is_delta(&self, t: usize) -> bool {
         let _ = t;
         self.is_specular()
     }
 
     /// Lobe `t`'s direction map (u[1], u[2]) → wi. Delta lobes ignore `u`.
+    #[inline(always)]
     fn sample_lobe(&self, t: usize, wo: Vec3, u: [f32; 2]) -> Option<Vec3> {
         match *self {
             Material::Diffuse { .. } => diffuse::sample(wo, u),
@@ -321,6 +327,7 @@ impl Material {
     }
 
     /// f·|cos θi| of delta lobe `t`.
+    #[inline]
     fn delta_weight(&self, t: usize, wo: Vec3, mode: TransportMode) -> Rgb {
         match *self {
             Material::Mirror { reflectance } => specular::weight(reflectance),
@@ -330,6 +337,7 @@ impl Material {
     }
 
     /// η_t/η_i that lobe `t` crosses from the side of `wo` (1 for every reflection lobe).
+    #[inline]
     fn lobe_eta(&self, t: usize, wo: Vec3) -> f32 {
         match *self {
             Material::Dielectric { ior } => dielectric::eta(ior, t, wo),
@@ -447,12 +455,14 @@ pub fn conditioning(wo: Vec3, wi: Vec3) -> f32 {
 
 /// Both directions finite and off the horizon plane (cos θ = 0 carries no energy and would divide
 /// by zero).
+#[inline]
 fn valid_pair(wo: Vec3, wi: Vec3) -> bool {
     wo.is_finite() && wi.is_finite() && wo.z != 0.0 && wi.z != 0.0
 }
 
 /// Lobe chosen by `u`: the first t with u < α_0 + … + α_t; the last lobe with non-zero
 /// probability takes any u left over by rounding of the sum. `None` if all probabilities are 0.
+#[inline]
 fn choose_lobe(probs: &[f32], u: f32) -> Option<usize> {
     let mut cdf = 0.0f32;
     let mut last = None;

@@ -7,11 +7,13 @@ use super::DELTA_DIRECTION_TOLERANCE;
 use crate::spectrum::Rgb;
 
 /// The mirror direction, or `None` when `wo` is not strictly above the horizon.
+#[inline]
 pub fn sample(wo: Vec3) -> Option<Vec3> {
     (wo.z > 0.0).then(|| reflect_z(wo))
 }
 
 /// f·|cos θi| of the delta lobe: the reflectance (no Fresnel falloff, as the scene gives it).
+#[inline]
 pub fn weight(reflectance: Rgb) -> Rgb {
     reflectance
 }

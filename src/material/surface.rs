@@ -93,7 +93,7 @@ impl SurfaceMaterial {
     }
 
     /// The BSDF at surface coordinates `uv`.
-    #[inline]
+    #[inline(always)]
     pub fn bsdf_at(&self, uv: Vec2) -> Bsdf {
         if self.textures.is_empty() {
             return Bsdf { material: self.template, two_sided: self.two_sided };

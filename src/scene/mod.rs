@@ -124,12 +124,12 @@ impl Scene {
         mask::occluded(self, ray)
     }
     /// The BSDF of the surface at `si` (textures looked up at its uv).
-    #[inline]
+    #[inline(always)]
     pub fn material(&self, si: &SurfaceInteraction) -> Bsdf {
         self.bsdf(self.shapes[si.geom_id as usize].material, si.uv)
     }
     /// The BSDF of material `material` at surface coordinates `uv`.
-    #[inline]
+    #[inline(always)]
     pub fn bsdf(&self, material: u32, uv: Vec2) -> Bsdf {
         self.materials[material as usize].bsdf_at(uv)
     }

@@ -200,6 +200,7 @@ impl Texture {
     }
 
     /// The colour at surface coordinates `uv`.
+    #[inline(always)]
     pub fn eval(&self, uv: Vec2) -> Rgb {
         match self {
             Texture::Bitmap { image, uscale, vscale } => {
