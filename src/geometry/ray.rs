@@ -100,12 +100,55 @@ pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
     let d = if w.dot(n) < 0.0 { -d } else { d };
     let offset = n * d;
     let po = p + offset;
-    Vec3::new(step_by_sign(po.x, offset.x), step_by_sign(po.y, offset.y), step_by_sign(po.z, offset.z))
+    step_by_sign3(po, offset)
+}
+
+/// [`step_by_sign`] of each coordinate of `v` by the sign of the same coordinate of `dir`.
+///
+/// On x86-64 the three coordinates are stepped at once in SSE2 lanes (the same integer operations
+/// on the bits, as masks): the scalar form was 45 instructions a spawned ray, 2.6% of the door's
+/// instructions (callgrind). Bit for bit the scalar form
+/// (`simd_step_is_the_scalar_step_bit_for_bit`).
+#[inline(always)]
+fn step_by_sign3(v: Vec3, dir: Vec3) -> Vec3 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE2 is part of x86-64; the intrinsics only compute on registers.
+        unsafe {
+            let vf = _mm_set_ps(0.0, v.z, v.y, v.x);
+            let df = _mm_set_ps(0.0, dir.z, dir.y, dir.x);
+            let zero = _mm_setzero_ps();
+            let bits = _mm_castps_si128(vf);
+            // All ones where the step is up / down (a zero or NaN `dir`: neither).
+            let up = _mm_castps_si128(_mm_cmpgt_ps(df, zero));
+            let down = _mm_castps_si128(_mm_cmplt_ps(df, zero));
+            let magnitude = _mm_and_si128(bits, _mm_set1_epi32(0x7fff_ffff));
+            // Away from zero: stepping up from a positive value or down from a negative one.
+            let grows = _mm_xor_si128(up, _mm_srai_epi32::<31>(bits));
+            let finite = _mm_cmplt_epi32(magnitude, _mm_set1_epi32(0x7f80_0000));
+            let ones = _mm_set1_epi32(-1);
+            // +1 (subtracting the all-ones mask) where growing and finite, −1 where not growing.
+            let stepped =
+                _mm_add_epi32(_mm_sub_epi32(bits, _mm_and_si128(grows, finite)), _mm_andnot_si128(grows, ones));
+            let at_zero = _mm_cmpeq_epi32(magnitude, _mm_setzero_si128());
+            let from_zero = _mm_or_si128(_mm_and_si128(down, _mm_set1_epi32(i32::MIN)), _mm_set1_epi32(1));
+            let stepped = _mm_or_si128(_mm_and_si128(at_zero, from_zero), _mm_andnot_si128(at_zero, stepped));
+            let moving = _mm_or_si128(up, down);
+            let out = _mm_castsi128_ps(_mm_or_si128(_mm_and_si128(moving, stepped), _mm_andnot_si128(moving, bits)));
+            let mut lanes = [0.0f32; 4];
+            _mm_storeu_ps(lanes.as_mut_ptr(), out);
+            Vec3::new(lanes[0], lanes[1], lanes[2])
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    Vec3::new(step_by_sign(v.x, dir.x), step_by_sign(v.y, dir.y), step_by_sign(v.z, dir.z))
 }
 
 /// `next_float_up(v)` when `dir > 0`, `next_float_down(v)` when `dir < 0`, `v` otherwise (a zero or
 /// NaN `dir`), computed on the bits with masks rather than selects (LLVM turned a select on the
 /// direction back into a branch). Equal to those two bit for bit for every non-NaN `v`.
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
 #[inline(always)]
 fn step_by_sign(v: f32, dir: f32) -> f32 {
     const SIGN: u32 = 0x8000_0000;
@@ -219,6 +262,63 @@ mod tests {
                 let got = step_by_sign(v, dir);
                 assert_eq!(got.to_bits(), want.to_bits(), "v = {v:e} ({:#x}), dir {dir}", v.to_bits());
             }
+        }
+    }
+
+    /// The SSE2 step of three coordinates is the scalar step of each, bit for bit: every pair of
+    /// the special values (signed zeros, subnormals, extremes, infinities, NaNs) as value and
+    /// direction, and a million random bit patterns each with a random direction (any bits,
+    /// zeros and NaNs included). A wrong lane mask (`finite` from `<=`, stepping infinities) fails
+    /// on the infinities.
+    #[test]
+    fn simd_step_is_the_scalar_step_bit_for_bit() {
+        let specials = [
+            0.0f32,
+            -0.0,
+            f32::from_bits(1),
+            -f32::from_bits(1),
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -f32::NAN,
+            1.0,
+            -1.0,
+            1e5,
+            -3.5e-20,
+        ];
+        let same = |v: Vec3, dir: Vec3| {
+            let got = step_by_sign3(v, dir);
+            let want = [step_by_sign(v.x, dir.x), step_by_sign(v.y, dir.y), step_by_sign(v.z, dir.z)];
+            for (g, w) in got.to_array().into_iter().zip(want) {
+                // NaN values: both NaN (payloads may differ), as in `step_by_sign_matches_next_float`.
+                assert!(g.to_bits() == w.to_bits() || (g.is_nan() && w.is_nan()), "v {v:?} dir {dir:?}");
+            }
+        };
+        for &a in &specials {
+            for &b in &specials {
+                same(Vec3::new(a, b, a), Vec3::new(b, a, -b));
+            }
+        }
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            f32::from_bits((state >> 32) as u32)
+        };
+        for _ in 0..1_000_000 {
+            let v = Vec3::new(next(), next(), next());
+            let pick = |x: f32| match x.to_bits() & 7 {
+                0 => 0.0,
+                1 => -0.0,
+                _ => x,
+            };
+            let dir = Vec3::new(pick(next()), pick(next()), pick(next()));
+            same(v, dir);
         }
     }
 

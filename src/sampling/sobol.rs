@@ -161,14 +161,31 @@ impl UniformSource for SobolStream {
     }
     /// A block of `N` numbers: from one set if `N` ≤ 4 (starting the next set when the rest of
     /// the current one is too short), else from the start of a fresh set on.
+    ///
+    /// A block of at most four is copied out of its set at once (one check for a new pair, one
+    /// copy), not read number by number through `next_1d` (a check and a load at a computed
+    /// index per number: callgrind put 3% of the door's instructions there); the numbers are
+    /// the same.
+    #[inline]
     fn next_n<const N: usize>(&mut self) -> [f32; N] {
         let used_of_set = self.position % 4;
         if used_of_set != 0 && used_of_set + N > 4 {
             self.position += 4 - used_of_set;
         }
         let mut u = [0.0; N];
-        for x in &mut u {
-            *x = self.next_1d();
+        if N <= 4 {
+            if self.position == 8 {
+                self.start_next_pair();
+            }
+            // The block fits in what is left of the set (the skip above), so it does not cross
+            // into the next set or past the pair.
+            let (set, used) = (self.position / 4, self.position % 4);
+            u.copy_from_slice(&self.values[set][used..used + N]);
+            self.position += N;
+        } else {
+            for x in &mut u {
+                *x = self.next_1d();
+            }
         }
         u
     }
