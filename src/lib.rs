@@ -19,6 +19,7 @@ pub mod interrupt;
 pub mod light;
 pub mod material;
 pub mod metrics;
+mod prefetch;
 pub mod sampling;
 pub mod scene;
 pub mod spectrum;

@@ -108,6 +108,19 @@ impl SurfaceMaterial {
         Bsdf { material: m, two_sided: self.two_sided }
     }
 
+    /// Whether `bsdf_at` reads bitmap texels (a colour parameter bound to an image).
+    pub fn reads_texels(&self) -> bool {
+        self.textures.iter().any(|(_, t)| t.reads_texels())
+    }
+
+    /// Asks the cache for the texels `bsdf_at(uv)` will read (a hint).
+    #[inline(always)]
+    pub fn prefetch_texels(&self, uv: Vec2) {
+        for (_, tex) in &self.textures {
+            tex.prefetch(uv);
+        }
+    }
+
     /// Opacity in [0, 1] at `uv` (1 for an unmasked material).
     #[inline]
     pub fn opacity_at(&self, uv: Vec2) -> f32 {

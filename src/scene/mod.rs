@@ -128,6 +128,17 @@ impl Scene {
     pub fn material(&self, si: &SurfaceInteraction) -> Bsdf {
         self.bsdf(self.shapes[si.geom_id as usize].material, si.uv)
     }
+    /// Whether the BSDF of a hit on shape `geom_id` reads bitmap texels (cache misses worth
+    /// starting early: `prefetch_texels`).
+    #[inline]
+    pub fn reads_texels(&self, geom_id: u32) -> bool {
+        self.shapes.get(geom_id as usize).is_some_and(|s| self.materials[s.material as usize].reads_texels())
+    }
+    /// Starts loading the texels `material(si)` will read (a hint, as `Scene::hit`'s).
+    #[inline(always)]
+    pub fn prefetch_texels(&self, si: &SurfaceInteraction) {
+        self.materials[self.shapes[si.geom_id as usize].material as usize].prefetch_texels(si.uv);
+    }
     /// The BSDF of material `material` at surface coordinates `uv`.
     #[inline(always)]
     pub fn bsdf(&self, material: u32, uv: Vec2) -> Bsdf {

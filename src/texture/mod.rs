@@ -16,6 +16,7 @@ use glam::Vec2;
 use crate::film::oiio::ReadImage;
 use crate::film::tonemap::srgb_eotf;
 use crate::huge_pages::advise_huge_pages;
+use crate::prefetch::prefetch;
 use crate::spectrum::Rgb;
 
 /// A decoded bitmap: linear RGB, row 0 at the top, every texel in [0, 1].
@@ -117,6 +118,23 @@ impl TexelImage {
         }
     }
 
+    /// Asks the cache for the four texels `bilinear(s, t)` will read (a hint: no effect on any
+    /// value). A lookup at a random hit misses the cache on most of the door's photographs; the
+    /// path tracer issues this as soon as the hit's uv is known and traces a shadow ray while the
+    /// texels arrive (docs/bench.md, issue 20 session 14).
+    #[inline(always)]
+    pub fn prefetch(&self, s: f32, t: f32) {
+        let (i0, i1, _) = wrapped_neighbours(s, self.width);
+        let (j0, j1, _) = wrapped_neighbours(t, self.height);
+        let (row0, row1) = (j0 * self.width, j1 * self.width);
+        for k in [row0 + i0, row0 + i1, row1 + i0, row1 + i1] {
+            match &self.storage {
+                TexelStorage::Linear(t) => t.get(k).map(prefetch),
+                TexelStorage::Coded { codes, .. } => codes.get(k).map(prefetch),
+            };
+        }
+    }
+
     /// The mean texel (what `info` reports for a textured parameter).
     pub fn mean(&self) -> Rgb {
         let n = self.width * self.height;
@@ -215,6 +233,20 @@ impl Texture {
                 }
             }
         }
+    }
+
+    /// Asks the cache for the texels `eval(uv)` will read (bitmaps; a checkerboard reads none).
+    #[inline(always)]
+    pub fn prefetch(&self, uv: Vec2) {
+        if let Texture::Bitmap { image, uscale, vscale } = self {
+            let (s, t) = Texture::st(uv, *uscale, *vscale);
+            image.prefetch(s, t);
+        }
+    }
+
+    /// Whether lookups read texels from memory (a bitmap), not only arithmetic (a checkerboard).
+    pub fn reads_texels(&self) -> bool {
+        matches!(self, Texture::Bitmap { .. })
     }
 
     /// For a checkerboard, which of its two colours covers `uv` (0 for `colour0`, 1 for
