@@ -43,6 +43,23 @@ pub(crate) fn advise_huge_pages<T>(v: &Vec<T>) {
     }
 }
 
+/// `v` with room for `spare` more elements. When it holds 1–64 MiB, moved into a fresh allocation
+/// whose 2 MiB-aligned part is advised for huge pages before it is written; otherwise `v` itself
+/// (a larger array is not copied: the 10M-triangle scene's load would hold both copies at once).
+/// A `Vec` rather than a [`HugeArray`]: the meshes' arrays are read through slices in the path
+/// tracer's innermost loop, where `HugeArray`'s two storages cost a branch per access and enough
+/// code to change the inliner's choices (the door's pt 8% slower, docs/bench.md).
+pub(crate) fn on_huge_pages<T: Copy>(mut v: Vec<T>, spare: usize) -> Vec<T> {
+    if !(HUGE_PAGE_MIN_BYTES..=HUGE_PAGE_ARRAY_BYTES).contains(&std::mem::size_of_val(&v[..])) {
+        v.reserve_exact(spare);
+        return v;
+    }
+    let mut copy = Vec::with_capacity(v.len() + spare);
+    advise_huge_pages(&copy);
+    copy.extend_from_slice(&v);
+    copy
+}
+
 /// A fixed-length array of `Copy` elements which, when it holds between [`HUGE_PAGE_MIN_BYTES`]
 /// and [`HUGE_PAGE_ARRAY_BYTES`] bytes, lives in its own 2 MiB-aligned anonymous mapping (its
 /// length rounded up to whole huge pages) advised for huge pages before it is first written;
@@ -159,18 +176,6 @@ impl<T: Copy> HugeArray<T> {
             Storage::Heap(v) => v.capacity() * std::mem::size_of::<T>(),
             Storage::Mapped { bytes, .. } => *bytes,
         }
-    }
-}
-
-impl<T: Copy + Send + Sync> Clone for HugeArray<T> {
-    fn clone(&self) -> Self {
-        HugeArray::from_vec(self.to_vec())
-    }
-}
-
-impl<T: Copy + std::fmt::Debug> std::fmt::Debug for HugeArray<T> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_list().entries(self.iter()).finish()
     }
 }
 

@@ -2,7 +2,8 @@ use glam::{Vec2, Vec3};
 use thiserror::Error;
 
 use super::Aabb;
-use crate::huge_pages::HugeArray;
+use crate::huge_pages::on_huge_pages;
+use crate::prefetch::prefetch;
 
 /// Why a mesh was refused.
 #[derive(Debug, Error, PartialEq)]
@@ -53,7 +54,7 @@ pub fn triangle_is_degenerate(a: Vec3, b: Vec3, c: Vec3) -> bool {
 }
 
 /// An indexed triangle mesh in world space, owned by Rust and shared (not copied) with Embree and
-/// the in-house BVH. Positions and indices of 1–64 MiB live on huge pages ([`HugeArray`]): every
+/// the in-house BVH. Positions and indices of 1–64 MiB live on huge pages (`on_huge_pages`): every
 /// closest hit's shading reads its triangle's indices and then its vertices at random places, and
 /// with 4 KiB pages these dependent misses also miss the TLB (`plexus bench`'s pt: 5% less time).
 ///
@@ -62,8 +63,8 @@ pub fn triangle_is_degenerate(a: Vec3, b: Vec3, c: Vec3) -> bool {
 /// ones. `positions()` hides it.
 #[derive(Debug, Clone)]
 pub struct TriangleMesh {
-    padded_positions: HugeArray<Vec3>,
-    indices: HugeArray<[u32; 3]>,
+    padded_positions: Vec<Vec3>,
+    indices: Vec<[u32; 3]>,
     normals: Option<Vec<Vec3>>,
     uvs: Option<Vec<Vec2>>,
 }
@@ -108,15 +109,9 @@ impl TriangleMesh {
         // Normals that are zero or non-finite would poison shading frames: drop them all rather
         // than shade some triangles smoothly and others not.
         let normals = normals.filter(|ns| ns.iter().all(|n| n.is_finite() && n.length_squared() > 0.0));
-        let mut padded_positions = positions;
-        padded_positions.reserve_exact(1);
+        let mut padded_positions = on_huge_pages(positions, 1);
         padded_positions.push(Vec3::ZERO);
-        Ok(TriangleMesh {
-            padded_positions: HugeArray::from_vec(padded_positions),
-            indices: HugeArray::from_vec(indices),
-            normals,
-            uvs,
-        })
+        Ok(TriangleMesh { padded_positions, indices: on_huge_pages(indices, 0), normals, uvs })
     }
 
     /// Vertex positions, without the padding vertex.
@@ -199,24 +194,11 @@ impl TriangleMesh {
     }
     /// Bytes held by this mesh's arrays.
     pub fn memory_bytes(&self) -> usize {
-        self.padded_positions.bytes()
-            + self.indices.bytes()
+        self.padded_positions.capacity() * 12
+            + self.indices.capacity() * 12
             + self.normals.as_ref().map_or(0, |n| n.capacity() * 12)
             + self.uvs.as_ref().map_or(0, |n| n.capacity() * 8)
     }
-}
-
-/// A cache-prefetch hint for the line holding `value` (a no-op off x86-64).
-#[inline(always)]
-fn prefetch<T>(value: &T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: `_mm_prefetch` only hints the cache; it never faults, and the pointer comes from
-    // a reference, so it is valid anyway.
-    unsafe {
-        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>((value as *const T).cast::<i8>());
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = value;
 }
 
 #[cfg(test)]
@@ -248,14 +230,14 @@ mod tests {
         assert!((m.triangle_area(0) - 0.5).abs() < 1e-6);
     }
 
-    /// A mesh whose index and position arrays hold between 1 and 64 MiB keeps them on huge pages
-    /// (shading reads them at every closest hit, at random places); the contents are unchanged.
-    /// A small mesh's stay on the heap.
+    /// A mesh whose index and position arrays hold between 1 and 64 MiB keeps them in memory
+    /// advised for huge pages (shading reads them at every closest hit, at random places); the
+    /// contents are unchanged. A small mesh's are not advised.
     #[cfg(target_os = "linux")]
     #[test]
     fn large_arrays_ask_for_huge_pages() {
         use crate::huge_pages::{advised_for_huge_pages, HUGE_PAGE};
-        let n = 100_000u32; // 1.2 MB of positions and of indices
+        let n = 400_000u32; // 4.8 MB of positions and of indices: whole huge pages inside each
         let positions: Vec<Vec3> = (0..n).map(|i| Vec3::new(i as f32, (i % 7) as f32, 1.0)).collect();
         let indices: Vec<[u32; 3]> = (0..n).map(|i| [i, (i + 1) % n, (i + 2) % n]).collect();
         let m = TriangleMesh::new(positions.clone(), indices.clone(), None, None).unwrap();
@@ -264,8 +246,9 @@ mod tests {
         for (name, start) in
             [("positions", m.padded_positions().as_ptr() as usize), ("indices", m.indices().as_ptr() as usize)]
         {
-            assert_eq!(start % HUGE_PAGE, 0, "{name} not aligned to a huge page");
-            assert!(advised_for_huge_pages(start as *const u8), "{name} not advised for huge pages");
+            // The allocation's first whole huge page: the part Linux can back with one.
+            let aligned = start.next_multiple_of(HUGE_PAGE);
+            assert!(advised_for_huge_pages(aligned as *const u8), "{name} not advised for huge pages");
         }
         let small = TriangleMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]], None, None).unwrap();
         assert!(!advised_for_huge_pages(small.indices().as_ptr()), "a one-triangle mesh's indices advised");

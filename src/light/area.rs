@@ -195,7 +195,7 @@ impl AreaLight {
     /// `sample_mesh_point` on this light's mesh, with the triangle's normal from `normals` (the
     /// same value `triangle_normal` computes: a normal per light sample in f64 showed as 1.4–3% of
     /// pt's profile).
-    #[inline]
+    #[inline(always)]
     pub(super) fn sample_point(&self, u: [f32; 3]) -> Option<MeshPoint> {
         if self.triangles.is_empty() {
             return None;
@@ -227,7 +227,7 @@ impl AreaLight {
     }
 
     /// `sample_li` seen from `reference` for the point `q` that `sample_point` drew.
-    #[inline]
+    #[inline(always)]
     pub(super) fn li_from_point(&self, reference: Vec3, q: &MeshPoint) -> Option<LightLiSample> {
         let to_light = q.p - reference;
         let dist2 = to_light.length_squared();

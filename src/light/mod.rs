@@ -218,7 +218,7 @@ impl Light {
     /// The half of `sample_li` that does not depend on the reference point: for an area light the
     /// point on the emitter (a path tracer draws it while the shading point's vertices are still
     /// loading); for an environment nothing yet. [`Self::li_from_point`] completes it.
-    #[inline]
+    #[inline(always)]
     pub fn sample_li_point(&self, u: [f32; LI_SAMPLE_DIMS]) -> LiPoint {
         match self {
             Light::Area(l) => LiPoint::Area(l.sample_point(u)),
@@ -227,7 +227,7 @@ impl Light {
     }
     /// `sample_li` from its reference-independent half `point` (drawn by this light's
     /// [`Self::sample_li_point`]).
-    #[inline]
+    #[inline(always)]
     pub fn li_from_point(&self, reference: Vec3, point: &LiPoint) -> Option<LightLiSample> {
         match (self, point) {
             (Light::Area(l), LiPoint::Area(q)) => l.li_from_point(reference, q.as_ref()?),
