@@ -22,8 +22,10 @@ use rayon::prelude::*;
 
 use crate::geometry::Aabb;
 
-/// A primitive during the build: its bounds and where it comes from. 32 bytes.
+/// A primitive during the build: its bounds and where it comes from. 32 bytes (`bounds_of` reads
+/// its halves as SIMD vectors).
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 pub(super) struct BuildPrim {
     pub min: Vec3,
     pub geom: u32,
@@ -194,8 +196,15 @@ impl Binner {
     fn bins_of(&self, c: Vec3A) -> [usize; 3] {
         let k = (c - Vec3A::from(self.origin)) * Vec3A::from(self.scale);
         let last = Vec3A::splat((self.bins - 1) as f32);
-        // Ordered comparisons are false for NaN: a NaN lane becomes 0, then stays below `last`.
+        // glam's `max` and `min` are `maxps` and `minps` on x86-64: `k > 0 ? k : 0`, then
+        // `k < last ? k : last`, the second operand when one is NaN, so a NaN lane becomes 0.
+        #[cfg(target_arch = "x86_64")]
+        let k = k.max(Vec3A::ZERO).min(last);
+        // Elsewhere (NEON's `vmaxq` returns NaN for NaN) with selects on ordered comparisons,
+        // which are false for NaN: a NaN lane becomes 0, then stays below `last`.
+        #[cfg(not(target_arch = "x86_64"))]
         let k = Vec3A::select(k.cmpge(Vec3A::ZERO), k, Vec3A::ZERO);
+        #[cfg(not(target_arch = "x86_64"))]
         let k = Vec3A::select(k.cmplt(last), k, last);
         // SAFETY: every lane is now finite and within [0, bins − 1] ⊂ [0, 16), where the
         // unchecked float-to-integer conversion is defined (it truncates, as `as` does).
@@ -241,37 +250,58 @@ fn half_area(min: Vec3A, max: Vec3A) -> f32 {
     e.x * e.y + e.y * e.z + e.z * e.x
 }
 
-/// Bins `prims`. Alternate primitives go to two sets of bins, merged at the end: consecutive
-/// primitives are often neighbours (meshes are stored in order) and fall in the same bins, and
-/// with one set each update would wait for the previous one's store to the same bin.
-fn bin_seq(prims: &[BuildPrim], binner: &Binner) -> Bins {
+/// Bins `prims` into `out`. Alternate primitives go to two sets of bins, merged at the end:
+/// consecutive primitives are often neighbours (meshes are stored in order) and fall in the same
+/// bins, and with one set each update would wait for the previous one's store to the same bin.
+/// (Written into the caller's bins rather than returned: the returned and destructured arrays,
+/// 2.3 kB each, were eight `memcpy` calls per binning, 4% of the build's instructions.)
+fn bin_seq(prims: &[BuildPrim], binner: &Binner, out: &mut Bins) {
     let nb = binner.bins;
-    let mut bins = [[[BinA::EMPTY; BINS]; 3]; 2];
-    let [even, odd] = &mut bins;
+    *out = [[BinA::EMPTY; BINS]; 3];
+    let mut odd = [[BinA::EMPTY; BINS]; 3];
     let pairs = prims.chunks_exact(2);
     for p in pairs.remainder() {
-        bin_one(even, p, binner);
+        bin_one(out, p, binner);
     }
     for pair in pairs {
-        bin_one(even, &pair[0], binner);
-        bin_one(odd, &pair[1], binner);
+        bin_one(out, &pair[0], binner);
+        bin_one(&mut odd, &pair[1], binner);
     }
-    let [mut out, odd] = bins;
     for (o, b) in out.iter_mut().zip(&odd) {
         for (o, b) in o[..nb].iter_mut().zip(&b[..nb]) {
             *o = o.merge(b);
         }
     }
-    out
+}
+
+/// The bounds of `p` in SIMD vectors. On x86-64 two unaligned loads of its halves (each box
+/// corner sits in the first three lanes, an id in the fourth) with the id lane cleared, which
+/// keeps integer bits, denormals as floats, out of the arithmetic; elsewhere from the fields.
+#[inline(always)]
+fn bounds_of(p: &BuildPrim) -> (Vec3A, Vec3A) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_and_ps, _mm_castsi128_ps, _mm_loadu_ps, _mm_set_epi32};
+        // SAFETY: SSE2 is part of the x86-64 baseline; `BuildPrim` is `repr(C)`, 32 bytes: `min`
+        // and `geom` are its first 16 bytes, `max` and `prim` its last 16, all readable.
+        unsafe {
+            let xyz = _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1));
+            let at = (p as *const BuildPrim).cast::<f32>();
+            (Vec3A::from(_mm_and_ps(_mm_loadu_ps(at), xyz)), Vec3A::from(_mm_and_ps(_mm_loadu_ps(at.add(4)), xyz)))
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    (Vec3A::from(p.min), Vec3A::from(p.max))
 }
 
 /// Adds `p` to its bin on each axis.
 #[inline(always)]
 fn bin_one(bins: &mut Bins, p: &BuildPrim, binner: &Binner) {
-    let (lo, hi) = (Vec3A::from(p.min), Vec3A::from(p.max));
+    let (lo, hi) = bounds_of(p);
     let k = binner.bins_of((lo + hi) * 0.5);
     for (axis, axis_bins) in bins.iter_mut().enumerate() {
-        let b = &mut axis_bins[k[axis]];
+        // `bins_of` is below `BINS`: the mask only spares the bounds check.
+        let b = &mut axis_bins[k[axis] & (BINS - 1)];
         b.count += 1;
         b.min = b.min.min(lo);
         b.max = b.max.max(hi);
@@ -287,11 +317,18 @@ fn merge_bins(mut a: Bins, b: Bins) -> Bins {
     a
 }
 
-fn bin_all(prims: &[BuildPrim], binner: &Binner) -> Bins {
+fn bin_all(prims: &[BuildPrim], binner: &Binner, out: &mut Bins) {
     if prims.len() > PARALLEL_PRIMS * 4 {
-        prims.par_chunks(CHUNK).map(|c| bin_seq(c, binner)).reduce(|| [[BinA::EMPTY; BINS]; 3], merge_bins)
+        *out = prims
+            .par_chunks(CHUNK)
+            .map(|c| {
+                let mut bins = [[BinA::EMPTY; BINS]; 3];
+                bin_seq(c, binner, &mut bins);
+                bins
+            })
+            .reduce(|| [[BinA::EMPTY; BINS]; 3], merge_bins);
     } else {
-        bin_seq(prims, binner)
+        bin_seq(prims, binner, out);
     }
 }
 
@@ -343,29 +380,68 @@ fn best_split(
     best.map(|(axis, bin, cost)| Split { axis, bin, cost: params.traversal_cost + cost / parent_half_area })
 }
 
-/// Reorders `prims` so that those for which `left` (given the primitive's centroid) holds come
-/// first; returns how many they are and the centroid bounds of both sides. The bounds grow in
-/// SIMD vectors (`c.min(bound)`: a NaN centroid leaves the bound as it was, as `Aabb::grow`).
+/// Reorders `prims` so that those whose centroid falls in a bin below `bin` on `axis`
+/// (`Binner::below`) come first; returns how many they are and the centroid bounds of both sides.
+fn partition(prims: &mut [BuildPrim], binner: &Binner, axis: usize, bin: usize) -> (usize, Aabb, Aabb) {
+    match axis {
+        0 => partition_on::<0>(prims, binner, bin),
+        1 => partition_on::<1>(prims, binner, bin),
+        _ => partition_on::<2>(prims, binner, bin),
+    }
+}
+
+/// `partition` on axis `AXIS` (a constant, so that the side test reads its lane directly).
+/// Hoare's scheme: the left end advances over primitives that stay left, the right end over those
+/// that stay right, and only a pair that is on the wrong sides is swapped, so each primitive is read
+/// once and at most the misplaced ones are written (the scheme before swapped every right one,
+/// reversing runs that were already in place). The bounds grow in SIMD vectors over the sums `min + max` and are halved at
+/// the end: halving is monotonic, so the halved extremes are the extremes of the halved sums, the
+/// centroids, exactly (a NaN sum leaves a bound as it was, as `Aabb::grow`).
 /// (A branch-free variant, Lomuto's scheme with an unconditional swap, measured 4% slower on the
-/// whole build: below the top levels the primitives arrive spatially ordered, so the side is
-/// predictable, and the two-ended scheme moves only the misplaced ones.)
-fn partition(prims: &mut [BuildPrim], left: impl Fn(Vec3A) -> bool) -> (usize, Aabb, Aabb) {
+/// whole build, session 11.)
+fn partition_on<const AXIS: usize>(prims: &mut [BuildPrim], binner: &Binner, bin: usize) -> (usize, Aabb, Aabb) {
+    // The centroid's corner sum and whether the centroid goes left.
+    let side = |p: &BuildPrim| {
+        let (lo, hi) = bounds_of(p);
+        let sum = lo + hi;
+        (sum, binner.below(sum * 0.5, AXIS, bin))
+    };
     let (mut lmin, mut lmax) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
     let (mut rmin, mut rmax) = (lmin, lmax);
     let mut i = 0;
     let mut j = prims.len();
-    while i < j {
-        let c = (Vec3A::from(prims[i].min) + Vec3A::from(prims[i].max)) * 0.5;
-        if left(c) {
-            (lmin, lmax) = (c.min(lmin), c.max(lmax));
-            i += 1;
-        } else {
-            (rmin, rmax) = (c.min(rmin), c.max(rmax));
-            j -= 1;
-            prims.swap(i, j);
+    'scan: loop {
+        // Invariant: prims[..i] go left and prims[j..] right, all of them counted in the bounds.
+        loop {
+            if i == j {
+                break 'scan;
+            }
+            let (sum, left) = side(&prims[i]);
+            if left {
+                (lmin, lmax) = (sum.min(lmin), sum.max(lmax));
+                i += 1;
+            } else {
+                (rmin, rmax) = (sum.min(rmin), sum.max(rmax));
+                break;
+            }
         }
+        // prims[i] goes right (counted).
+        loop {
+            j -= 1;
+            if j == i {
+                break 'scan;
+            }
+            let (sum, left) = side(&prims[j]);
+            if left {
+                (lmin, lmax) = (sum.min(lmin), sum.max(lmax));
+                break;
+            }
+            (rmin, rmax) = (sum.min(rmin), sum.max(rmax));
+        }
+        prims.swap(i, j);
+        i += 1;
     }
-    let aabb = |min: Vec3A, max: Vec3A| Aabb { min: min.into(), max: max.into() };
+    let aabb = |min: Vec3A, max: Vec3A| Aabb { min: (min * 0.5).into(), max: (max * 0.5).into() };
     (i, aabb(lmin, lmax), aabb(rmin, rmax))
 }
 
@@ -460,6 +536,18 @@ fn split(prims: &mut [BuildPrim], r: &Range, params: &BuildParams) -> Option<(Ra
     if r.depth < SAH_DEPTH && c_extent.max_element() > 0.0 {
         let parent_half_area = half_area(r.ext.bounds.min.into(), r.ext.bounds.max.into());
         if n <= SWEEP_PRIMS {
+            // A split costs `C_trav` plus a non-negative term, so where one packet's test costs no
+            // more than `C_trav` (`P(n) = 1 ≤ C_trav`) the sweep would find no split cheaper than
+            // the leaf: decided without it (about half of all `split` calls, the leaves of up to
+            // four triangles). The area guard keeps the case where the term could be NaN
+            // (an infinite or zero parent area) with the sweep, as before.
+            if n <= params.max_leaf
+                && packets(n) <= params.traversal_cost
+                && parent_half_area.is_finite()
+                && parent_half_area > 0.0
+            {
+                return None;
+            }
             let (mid, cost) = sweep_split(slice, parent_half_area, params)?;
             if n <= params.max_leaf && cost >= packets(n) {
                 return None;
@@ -470,12 +558,13 @@ fn split(prims: &mut [BuildPrim], r: &Range, params: &BuildParams) -> Option<(Ra
         let nb = n.clamp(4, BINS);
         let scale = Vec3::select(c_extent.cmpgt(Vec3::ZERO), Vec3::splat(nb as f32) / c_extent, Vec3::ZERO);
         let binner = Binner { origin: r.ext.centroids.min, scale, bins: nb };
-        let bins = bin_all(slice, &binner);
+        let mut bins = [[BinA::EMPTY; BINS]; 3];
+        bin_all(slice, &binner, &mut bins);
         if let Some(s) = best_split(&bins, nb, parent_half_area, c_extent, params) {
             if n <= params.max_leaf && s.cost >= packets(n) {
                 return None;
             }
-            let (mid, lc, rc) = partition(slice, |c| binner.below(c, s.axis, s.bin));
+            let (mid, lc, rc) = partition(slice, &binner, s.axis, s.bin);
             if mid > 0 && mid < n {
                 let fold = |bins: &[BinA], centroids: Aabb| {
                     let b = bins.iter().fold(BinA::EMPTY, |a, b| a.merge(b));
