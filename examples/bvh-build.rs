@@ -51,7 +51,13 @@ fn main() -> Result<()> {
             e_cpu.push(t.cpu.as_secs_f64());
         }
     }
-    println!("bvh median: wall_s {:.4} cpu_s {:.4} nodes {} bytes {}", median(bvh_wall), median(bvh_cpu), shape.0, shape.1);
+    println!(
+        "bvh median: wall_s {:.4} cpu_s {:.4} nodes {} bytes {}",
+        median(bvh_wall),
+        median(bvh_cpu),
+        shape.0,
+        shape.1
+    );
     if embree {
         println!("embree median: wall_s {:.4} cpu_s {:.4}", median(e_wall), median(e_cpu));
     }
