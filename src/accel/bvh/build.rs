@@ -157,15 +157,22 @@ impl Bin {
     }
 }
 
+/// Bounds and centroid bounds of `prims`, in SIMD vectors; the centroid bounds over the corner
+/// sums, halved at the end (exactly the bounds of the centroids: halving is monotonic).
 fn extent_seq(prims: &[BuildPrim]) -> Bin {
-    let mut e = Bin::EMPTY;
+    let (mut min, mut max) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+    let (mut cmin, mut cmax) = (min, max);
     for p in prims {
-        e.bounds.min = e.bounds.min.min(p.min);
-        e.bounds.max = e.bounds.max.max(p.max);
-        e.centroids.grow(p.centroid());
+        let (lo, hi) = bounds_of(p);
+        let sum = lo + hi;
+        (min, max) = (min.min(lo), max.max(hi));
+        (cmin, cmax) = (cmin.min(sum), cmax.max(sum));
     }
-    e.count = prims.len() as u32;
-    e
+    Bin {
+        bounds: Aabb { min: min.into(), max: max.into() },
+        centroids: Aabb { min: (cmin * 0.5).into(), max: (cmax * 0.5).into() },
+        count: prims.len() as u32,
+    }
 }
 
 /// Bounds and centroid bounds of `prims`.
@@ -380,6 +387,121 @@ fn best_split(
     best.map(|(axis, bin, cost)| Split { axis, bin, cost: params.traversal_cost + cost / parent_half_area })
 }
 
+/// `best_split` with the three axes in the lanes of SIMD vectors: the same candidates, the same
+/// f32 operations on each (areas `e.x e.y + e.y e.z + e.z e.x` of `max(max − min, 0)`, the
+/// packets `⌈N / 4⌉`, one product and one sum per candidate) and the same choice (the least cost,
+/// the first axis then the first bin among equals), so the same split bit for bit
+/// (`simd_sweep_picks_the_scalar_split` compares them). The bins are transposed once (lane `a` of
+/// each row from axis `a`'s bin), and the sweeps then do one vector operation where the scalar one
+/// did three and extracted lanes for the areas. Counts are summed as f32, exact below 2^24; larger
+/// ranges, and any candidate of infinite or NaN cost (bounds that overflow), go to `best_split`,
+/// whose choice among those (the first candidate even if NaN) the vectors do not reproduce.
+#[cfg(target_arch = "x86_64")]
+fn best_split_simd(
+    bins: &Bins,
+    nb: usize,
+    n: usize,
+    parent_half_area: f32,
+    centroid_extent: Vec3,
+    params: &BuildParams,
+) -> Option<Split> {
+    use glam::{BVec4A, Vec4};
+    use std::arch::x86_64::{
+        __m128, _mm_cvtepi32_ps, _mm_cvttps_epi32, _mm_movehl_ps, _mm_movelh_ps, _mm_setr_epi32, _mm_unpackhi_ps,
+        _mm_unpacklo_ps,
+    };
+    if n >= 1 << 24 {
+        return best_split(bins, nb, parent_half_area, centroid_extent, params);
+    }
+    /// One row: the bounds of a box per lane (min x, y, z, max x, y, z) and its count.
+    #[derive(Clone, Copy)]
+    struct Row {
+        min: [Vec4; 3],
+        max: [Vec4; 3],
+        count: Vec4,
+    }
+    impl Row {
+        const EMPTY: Row = Row { min: [Vec4::INFINITY; 3], max: [Vec4::NEG_INFINITY; 3], count: Vec4::ZERO };
+        #[inline(always)]
+        fn merge(&self, o: &Row) -> Row {
+            let f = |i: usize| (self.min[i].min(o.min[i]), self.max[i].max(o.max[i]));
+            let (a, b, c) = (f(0), f(1), f(2));
+            Row { min: [a.0, b.0, c.0], max: [a.1, b.1, c.1], count: self.count + o.count }
+        }
+        /// `half_area(min, max) · packets(count)` in each lane.
+        #[inline(always)]
+        fn cost(&self) -> Vec4 {
+            let e = |i: usize| (self.max[i] - self.min[i]).max(Vec4::ZERO);
+            let (x, y, z) = (e(0), e(1), e(2));
+            // ⌈c / 4⌉ = ⌊(c + 3) / 4⌋: exact in f32 below 2^24, and truncation is the floor here.
+            // SAFETY: SSE2 is part of the x86-64 baseline.
+            let packets = unsafe {
+                Vec4::from(_mm_cvtepi32_ps(_mm_cvttps_epi32(((self.count + Vec4::splat(3.0)) * 0.25).into())))
+            };
+            (x * y + y * z + z * x) * packets
+        }
+    }
+    // Lanes a = 0, 1, 2 of (x, y, z) gathered from the three vectors (x_a, y_a, z_a, _).
+    // SAFETY (both): SSE2 is part of the x86-64 baseline.
+    let transpose = |v0: __m128, v1: __m128, v2: __m128| unsafe {
+        let zero = Vec4::ZERO.into();
+        let (a, b) = (_mm_unpacklo_ps(v0, v1), _mm_unpacklo_ps(v2, zero));
+        let (c, d) = (_mm_unpackhi_ps(v0, v1), _mm_unpackhi_ps(v2, zero));
+        [Vec4::from(_mm_movelh_ps(a, b)), Vec4::from(_mm_movehl_ps(b, a)), Vec4::from(_mm_movelh_ps(c, d))]
+    };
+    let mut rows = [Row::EMPTY; BINS];
+    for (i, row) in rows.iter_mut().enumerate().take(nb) {
+        let [b0, b1, b2] = [&bins[0][i], &bins[1][i], &bins[2][i]];
+        let count = unsafe {
+            Vec4::from(_mm_cvtepi32_ps(_mm_setr_epi32(b0.count as i32, b1.count as i32, b2.count as i32, 0)))
+        };
+        *row = Row {
+            min: transpose(b0.min.into(), b1.min.into(), b2.min.into()),
+            max: transpose(b0.max.into(), b1.max.into(), b2.max.into()),
+            count,
+        };
+    }
+    let mut right_cost = [Vec4::ZERO; BINS];
+    let mut right_count = [Vec4::ZERO; BINS];
+    let mut acc = Row::EMPTY;
+    for i in (1..nb).rev() {
+        acc = acc.merge(&rows[i]);
+        right_count[i] = acc.count;
+        right_cost[i] = acc.cost();
+    }
+    let extent = Vec4::new(centroid_extent.x, centroid_extent.y, centroid_extent.z, 0.0);
+    let axes = extent.cmpgt(Vec4::ZERO);
+    let mut best_cost = Vec4::INFINITY;
+    let mut best_bin = Vec4::ZERO;
+    let mut not_finite = BVec4A::FALSE;
+    let mut acc = Row::EMPTY;
+    for i in 1..nb {
+        acc = acc.merge(&rows[i - 1]);
+        let cost = acc.cost() + right_cost[i];
+        let valid = axes & acc.count.cmpgt(Vec4::ZERO) & right_count[i].cmpgt(Vec4::ZERO);
+        // `!(cost < ∞)`: infinite or NaN.
+        not_finite |= valid & !cost.cmplt(Vec4::INFINITY);
+        let better = valid & cost.cmplt(best_cost);
+        best_cost = Vec4::select(better, cost, best_cost);
+        best_bin = Vec4::select(better, Vec4::splat(i as f32), best_bin);
+    }
+    if not_finite.any() {
+        return best_split(bins, nb, parent_half_area, centroid_extent, params);
+    }
+    let (costs, bins_at) = (best_cost.to_array(), best_bin.to_array());
+    let mut best: Option<(usize, f32)> = None;
+    for axis in 0..3 {
+        if costs[axis] < f32::INFINITY && best.is_none_or(|b| costs[axis] < b.1) {
+            best = Some((axis, costs[axis]));
+        }
+    }
+    best.map(|(axis, cost)| Split {
+        axis,
+        bin: bins_at[axis] as usize,
+        cost: params.traversal_cost + cost / parent_half_area,
+    })
+}
+
 /// Reorders `prims` so that those whose centroid falls in a bin below `bin` on `axis`
 /// (`Binner::below`) come first; returns how many they are and the centroid bounds of both sides.
 fn partition(prims: &mut [BuildPrim], binner: &Binner, axis: usize, bin: usize) -> (usize, Aabb, Aabb) {
@@ -560,7 +682,11 @@ fn split(prims: &mut [BuildPrim], r: &Range, params: &BuildParams) -> Option<(Ra
         let binner = Binner { origin: r.ext.centroids.min, scale, bins: nb };
         let mut bins = [[BinA::EMPTY; BINS]; 3];
         bin_all(slice, &binner, &mut bins);
-        if let Some(s) = best_split(&bins, nb, parent_half_area, c_extent, params) {
+        #[cfg(target_arch = "x86_64")]
+        let best = best_split_simd(&bins, nb, n, parent_half_area, c_extent, params);
+        #[cfg(not(target_arch = "x86_64"))]
+        let best = best_split(&bins, nb, parent_half_area, c_extent, params);
+        if let Some(s) = best {
             if n <= params.max_leaf && s.cost >= packets(n) {
                 return None;
             }
@@ -765,4 +891,61 @@ fn build_node(
         out[me].set(k, &c.ext.bounds, child, count);
     }
     me as u32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Rng;
+
+    /// The SIMD sweep picks the scalar one's split, bit for bit, on random bins: some empty, some
+    /// axes without centroid extent, ties between axes (copied bins), and bounds large enough that
+    /// areas overflow to infinity (the fallback to the scalar sweep).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn simd_sweep_picks_the_scalar_split() {
+        let mut rng = Rng::new(20, 14);
+        let params = BuildParams::default();
+        let (mut found, mut overflowed) = (0, 0);
+        for case in 0..20_000 {
+            let nb = 2 + (rng.next_u64() % (BINS as u64 - 1)) as usize;
+            let scale = match case % 4 {
+                0 => 1e-3,
+                1 | 2 => 10.0,
+                _ => 1e19,
+            };
+            let mut bins = [[BinA::EMPTY; BINS]; 3];
+            let mut n = 0;
+            for axis in 0..3 {
+                for bin in bins[axis].iter_mut().take(nb) {
+                    if rng.uniform() < 0.25 {
+                        continue;
+                    }
+                    let c = Vec3A::new(rng.uniform(), rng.uniform(), rng.uniform()) * scale;
+                    let e = Vec3A::new(rng.uniform(), rng.uniform(), rng.uniform()) * scale * 0.2;
+                    // Coarse values, so that equal costs happen.
+                    let q = |v: Vec3A| (v * 8.0).round() / 8.0;
+                    *bin = BinA { min: q(c - e), max: q(c + e), count: 1 + (rng.next_u64() % 9) as u32 };
+                    n += bin.count as usize;
+                }
+            }
+            if rng.uniform() < 0.3 {
+                // The same bins on two axes: equal costs, the first axis must win.
+                bins[1] = bins[0];
+            }
+            let extent = Vec3::new(
+                if rng.uniform() < 0.15 { 0.0 } else { 1.0 },
+                if rng.uniform() < 0.15 { 0.0 } else { 1.0 },
+                if rng.uniform() < 0.15 { 0.0 } else { 1.0 },
+            );
+            let parent = 3.0 * scale * scale;
+            let a = best_split(&bins, nb, parent, extent, &params);
+            let b = best_split_simd(&bins, nb, n, parent, extent, &params);
+            let key = |s: &Option<Split>| s.as_ref().map(|s| (s.axis, s.bin, s.cost.to_bits()));
+            assert_eq!(key(&a), key(&b), "case {case}: nb {nb}");
+            found += a.is_some() as usize;
+            overflowed += a.as_ref().is_some_and(|s| !s.cost.is_finite()) as usize;
+        }
+        assert!(found > 15_000 && overflowed > 100, "{found} splits, {overflowed} overflowed");
+    }
 }
