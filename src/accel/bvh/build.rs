@@ -490,9 +490,9 @@ fn best_split_simd(
     }
     let (costs, bins_at) = (best_cost.to_array(), best_bin.to_array());
     let mut best: Option<(usize, f32)> = None;
-    for axis in 0..3 {
-        if costs[axis] < f32::INFINITY && best.is_none_or(|b| costs[axis] < b.1) {
-            best = Some((axis, costs[axis]));
+    for (axis, &cost) in costs.iter().enumerate().take(3) {
+        if cost < f32::INFINITY && best.is_none_or(|b| cost < b.1) {
+            best = Some((axis, cost));
         }
     }
     best.map(|(axis, cost)| Split {
@@ -916,8 +916,8 @@ mod tests {
             };
             let mut bins = [[BinA::EMPTY; BINS]; 3];
             let mut n = 0;
-            for axis in 0..3 {
-                for bin in bins[axis].iter_mut().take(nb) {
+            for axis_bins in bins.iter_mut() {
+                for bin in axis_bins.iter_mut().take(nb) {
                     if rng.uniform() < 0.25 {
                         continue;
                     }
