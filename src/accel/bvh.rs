@@ -23,6 +23,7 @@ pub use triangle::{intersect_triangle, RayPre};
 use super::{Accel, AccelKind};
 use crate::geometry::{Hit, Ray, TriangleMesh};
 use crate::huge_pages::HugeArray;
+use crate::prefetch::prefetch_line;
 
 /// A bounding volume hierarchy over a list of shared meshes.
 ///
@@ -373,19 +374,6 @@ fn prefetch<T>(v: &[T], i: usize) {
     if let Some(x) = v.get(i) {
         prefetch_line(x as *const T);
     }
-}
-
-/// Asks the cache for the line holding `p` (x86_64; elsewhere nothing). A prefetch never faults,
-/// so `p` need not point into a live allocation.
-#[inline(always)]
-fn prefetch_line<T>(p: *const T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: SSE is part of the x86_64 baseline, and a prefetch never faults.
-    unsafe {
-        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast())
-    };
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = p;
 }
 
 /// The lane mask of a leaf's packet with `remaining` of the leaf's triangles at or after its first
