@@ -417,3 +417,36 @@ fn geometry_ids_and_barycentrics_match_embree_convention() {
     assert!(bvh.intersect(&Ray::segment(Vec3::new(0.25, -0.5, 1.0), -Vec3::Z, 0.99)).is_none());
     assert!(!bvh.occluded(&Ray::segment(Vec3::new(0.25, -0.5, 1.0), -Vec3::Z, 0.99)));
 }
+
+/// The tree does not depend on the thread count: the build's parallel passes (centroid bounds,
+/// binning, partition, leaf packing) reduce in a fixed order, so 1, 2 and 3 threads give the same
+/// nodes and the same leaf order, on a sphere and on a regular grid whose many equal centroid
+/// coordinates make the partition break ties. A build whose result depended on how rayon split the
+/// work (an unordered collect, a reduce whose order follows the scheduling) would differ here.
+#[test]
+fn tree_is_the_same_on_any_thread_count() {
+    let n = 300u32;
+    let grid_positions: Vec<Vec3> =
+        (0..=n).flat_map(|j| (0..=n).map(move |i| Vec3::new(i as f32, 0.1 * ((i + j) % 3) as f32, j as f32))).collect();
+    let at = |i: u32, j: u32| j * (n + 1) + i;
+    let grid_indices: Vec<[u32; 3]> = (0..n)
+        .flat_map(|j| {
+            (0..n).flat_map(move |i| {
+                [[at(i, j), at(i + 1, j), at(i, j + 1)], [at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]]
+            })
+        })
+        .collect();
+    let scenes = [vec![icosphere(7)], vec![mesh(grid_positions, grid_indices), icosphere(5)]];
+    for meshes in &scenes {
+        let build_on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+            pool.install(|| Bvh::build(meshes))
+        };
+        let one = build_on(1);
+        for threads in [2, 3] {
+            let other = build_on(threads);
+            assert!(one.nodes[..] == other.nodes[..], "nodes differ on {threads} threads");
+            assert!(one.ids[..] == other.ids[..], "leaf order differs on {threads} threads");
+        }
+    }
+}
