@@ -228,28 +228,32 @@ mod tests {
         assert_eq!(next_float_up(1.0).to_bits() - 1.0f32.to_bits(), 1);
     }
 
+    /// The values where a one-ulp step goes wrong if it goes wrong anywhere: signed zeros,
+    /// subnormals, the extremes, infinities, and a few ordinary ones (no NaN).
+    const SPECIAL_FLOATS: [f32; 14] = [
+        0.0,
+        -0.0,
+        f32::from_bits(1),
+        -f32::from_bits(1),
+        f32::MIN_POSITIVE,
+        -f32::MIN_POSITIVE,
+        f32::MAX,
+        f32::MIN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        1.0,
+        -1.0,
+        1e5,
+        -3.5e-20,
+    ];
+
     /// The branch-free step is the textbook one bit for bit: on the special values (zeros,
     /// subnormals, the largest finite values, infinities) and on a million random bit patterns,
     /// for each of the three directions. (NaN `v` is left out: both give a NaN, with different
     /// payloads.)
     #[test]
     fn step_by_sign_matches_next_float() {
-        let specials = [
-            0.0f32,
-            -0.0,
-            f32::from_bits(1),
-            -f32::from_bits(1),
-            f32::MIN_POSITIVE,
-            -f32::MIN_POSITIVE,
-            f32::MAX,
-            f32::MIN,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            1.0,
-            -1.0,
-            1e5,
-            -3.5e-20,
-        ];
+        let specials = SPECIAL_FLOATS;
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         let random = (0..1_000_000).map(|_| {
             state ^= state << 13;
@@ -272,24 +276,7 @@ mod tests {
     /// on the infinities.
     #[test]
     fn simd_step_is_the_scalar_step_bit_for_bit() {
-        let specials = [
-            0.0f32,
-            -0.0,
-            f32::from_bits(1),
-            -f32::from_bits(1),
-            f32::MIN_POSITIVE,
-            -f32::MIN_POSITIVE,
-            f32::MAX,
-            f32::MIN,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::NAN,
-            -f32::NAN,
-            1.0,
-            -1.0,
-            1e5,
-            -3.5e-20,
-        ];
+        let specials: Vec<f32> = SPECIAL_FLOATS.into_iter().chain([f32::NAN, -f32::NAN]).collect();
         let same = |v: Vec3, dir: Vec3| {
             let got = step_by_sign3(v, dir);
             let want = [step_by_sign(v.x, dir.x), step_by_sign(v.y, dir.y), step_by_sign(v.z, dir.z)];
