@@ -7,8 +7,8 @@
 //! over the two densities, both expressed per unit solid angle at the shading point, the light's
 //! including its selection probability. After a specular (delta) bounce no light sample is possible,
 //! so emission found by the continuation ray counts fully. Environment lights are handled both ways
-//! like area lights. Russian roulette starts after `rr_depth` bounces and follows the throughput with
-//! refraction's 1/η² undone (`roulette_survival`).
+//! like area lights. Russian roulette starts after `rr_depth` bounces and keeps a path with
+//! probability `rr_scale` times its throughput, refraction's 1/η² undone (`roulette_survival`).
 //!
 //! All randomness comes from the work item's stream in a fixed order that depends only on the hits,
 //! and hit points come from barycentrics, so Embree and the in-house BVH give the same image.
@@ -51,6 +51,9 @@ pub struct PtSettings {
     pub max_depth: u32,
     /// Russian roulette starts after this many bounces.
     pub rr_depth: u32,
+    /// Russian roulette keeps a path with probability min(1, `rr_scale` × its throughput)
+    /// (`roulette_survival`); 1 is pbrt's and Mitsuba's rule. Must be positive and finite.
+    pub rr_scale: f32,
     /// How light samples and BSDF samples are weighted: "power", "balance", "bsdf_only",
     /// "light_only".
     pub mis: Mis,
@@ -61,7 +64,7 @@ pub struct PtSettings {
 
 impl Default for PtSettings {
     fn default() -> Self {
-        PtSettings { max_depth: 16, rr_depth: 5, mis: Mis::Power, sampler: SamplerKind::default() }
+        PtSettings { max_depth: 16, rr_depth: 5, rr_scale: 2.0, mis: Mis::Power, sampler: SamplerKind::default() }
     }
 }
 
@@ -81,6 +84,12 @@ impl PathTracer {
         let settings: PtSettings = settings_from_table("pt", params)?;
         if settings.max_depth == 0 {
             return Err(RenderError::Settings("pt: max_depth must be at least 1".into()));
+        }
+        if !(settings.rr_scale > 0.0 && settings.rr_scale.is_finite()) {
+            return Err(RenderError::Settings(format!(
+                "pt: rr_scale must be a positive finite number (1 is the throughput rule), not {}",
+                settings.rr_scale
+            )));
         }
         Ok(PathTracer::new(settings))
     }
@@ -318,7 +327,7 @@ impl PathTracer {
             ray = si.spawn(frame.to_world(bs.wi));
 
             if depth >= self.settings.rr_depth {
-                match russian_roulette(beta, eta_scale, u_rr) {
+                match russian_roulette(beta, eta_scale, self.settings.rr_scale, u_rr) {
                     Some(survivor) => beta = survivor,
                     None => break,
                 }
@@ -335,17 +344,29 @@ impl PathTracer {
 }
 
 /// Probability that Russian roulette lets a path with throughput `beta` continue, `eta_scale` being
-/// the product of η² over its refractions (pbrt-v4 `PathIntegrator::Li`, Sec. 13.1.5):
-/// q = max component of beta · eta_scale when that is below 1, else 1 (no roll).
+/// the product of η² over its refractions and `scale` the setting `rr_scale`:
+/// q = min(1, scale · max component of beta · eta_scale).
 ///
 /// Undoing the 1/η² that refraction applies in radiance transport (Veach 1997 Sec. 5.2) keeps a
 /// path inside glass from being killed for a compression that the exit undoes (×η² again): without
-/// it a path inside η = 1.5 survives each roll with q ≈ 1/2.25 ≈ 0.44. There is no floor: a survivor
-/// is reweighted by 1/q, which brings beta · eta_scale's largest component to exactly 1, so no
-/// survivor ever carries more than a fresh unit-throughput path and a floor would only spend rays on
-/// paths that carry less than it. `max_depth` bounds the paths that never roll.
-pub fn roulette_survival(beta: Rgb, eta_scale: f32) -> f32 {
-    let m = (beta * eta_scale).max_element();
+/// it a path inside η = 1.5 survives each roll with q ≈ 1/2.25 ≈ 0.44 (pbrt-v4 `etaScale`,
+/// `PathIntegrator::Li`, Sec. 13.1.5).
+///
+/// Why scale the throughput rule (scale 1: pbrt-v4 and Mitsuba 3) by 2. A roll with survival q at a
+/// vertex of throughput β, whose remaining path would add β·F, adds β²·E[F²]·(1/q − 1) to the
+/// sample's variance V and saves (1 − q)·c of its cost C, c being that remaining path's cost.
+/// The efficiency 1/(V·C) is largest where the two relative changes balance, d(ln V)/dq = −d(ln C)/dq:
+/// q = β·√(E[F²]·C / (V·c)) (the efficiency-optimal factor of Rath et al. 2022, "EARS:
+/// Efficiency-Aware Russian Roulette and Splitting", derived here for a single roll). The
+/// throughput rule is this with √(E[F²]·C/(V·c)) = 1; but a roll saves only the remaining path's
+/// cost c, a fraction of the whole sample's C that has already been paid (camera ray, first bounces),
+/// so the factor is above 1 unless the remaining path is far less noisy than the sample. Measured on
+/// ten scenes (docs/benchmarks.md, "Russian roulette's survival scale"), variance × rays improved by
+/// 4–30% at scales 2 to 4 (a plateau) against 1, except one scene within its noise (−1%); 2 is the
+/// cheapest point of the plateau. A survivor is reweighted by 1/q; it carries at most 1/scale
+/// of a fresh path's throughput, and `max_depth` bounds the paths that never roll.
+pub fn roulette_survival(beta: Rgb, eta_scale: f32, scale: f32) -> f32 {
+    let m = scale * (beta * eta_scale).max_element();
     // `!(m < 1)` also sends a NaN to "no roll"; `li` drops non-finite throughputs before rolling.
     if !(m < 1.0) {
         1.0
@@ -357,8 +378,8 @@ pub fn roulette_survival(beta: Rgb, eta_scale: f32) -> f32 {
 /// One roll of Russian roulette with the uniform `u`: the reweighted throughput beta / q if the
 /// path survives (u < q, probability q = `roulette_survival`), `None` if it ends. The expected
 /// reweighted throughput is q · beta/q = beta, so the estimator stays unbiased.
-pub fn russian_roulette(beta: Rgb, eta_scale: f32, u: f32) -> Option<Rgb> {
-    let q = roulette_survival(beta, eta_scale);
+pub fn russian_roulette(beta: Rgb, eta_scale: f32, scale: f32, u: f32) -> Option<Rgb> {
+    let q = roulette_survival(beta, eta_scale, scale);
     if q >= 1.0 {
         return Some(beta);
     }
@@ -443,7 +464,7 @@ mod tests {
         let pt = PathTracer::from_params(&toml::Table::new()).expect("defaults");
         assert_eq!(
             pt.settings,
-            PtSettings { max_depth: 16, rr_depth: 5, mis: Mis::Power, sampler: SamplerKind::Sobol }
+            PtSettings { max_depth: 16, rr_depth: 5, rr_scale: 2.0, mis: Mis::Power, sampler: SamplerKind::Sobol }
         );
         let t: toml::Table = toml::from_str("max_depth = 3\nmis = \"balance\"").expect("toml");
         let pt = PathTracer::from_params(&t).expect("valid");
@@ -453,6 +474,13 @@ mod tests {
         assert!(err.contains("max_dept"), "{err}");
         let zero: toml::Table = toml::from_str("max_depth = 0").expect("toml");
         assert!(PathTracer::from_params(&zero).is_err());
+        for bad_scale in ["0.0", "-1.0", "nan", "inf"] {
+            let t: toml::Table = toml::from_str(&format!("rr_scale = {bad_scale}")).expect("toml");
+            let err = PathTracer::from_params(&t).expect_err(bad_scale).to_string();
+            assert!(err.contains("rr_scale"), "{bad_scale}: {err}");
+        }
+        let t: toml::Table = toml::from_str("rr_scale = 1").expect("toml");
+        assert_eq!(PathTracer::from_params(&t).expect("integer scale").settings.rr_scale, 1.0);
     }
 
     /// A path whose throughput (η² undone) is ≥ 1 in some channel is never rolled: it survives
@@ -461,11 +489,27 @@ mod tests {
     #[test]
     fn roulette_never_rolls_a_throughput_of_one_or_more() {
         for beta in [Rgb::ONE, Rgb::new(1.0, 0.2, 0.1), Rgb::new(0.0, 3.0, 0.0), Rgb::splat(40.0)] {
-            assert_eq!(roulette_survival(beta, 1.0), 1.0, "{beta:?}");
-            assert_eq!(russian_roulette(beta, 1.0, 0.999_999), Some(beta), "{beta:?}");
+            for scale in [1.0, 2.0] {
+                assert_eq!(roulette_survival(beta, 1.0, scale), 1.0, "{beta:?}");
+                assert_eq!(russian_roulette(beta, 1.0, scale, 0.999_999), Some(beta), "{beta:?}");
+            }
         }
         // 0.5 inside glass (η² = 2.25 accumulated) is 1.125 without the compression: no roll.
-        assert_eq!(roulette_survival(Rgb::splat(0.5), 2.25), 1.0);
+        assert_eq!(roulette_survival(Rgb::splat(0.5), 2.25, 1.0), 1.0);
+    }
+
+    /// `rr_scale` multiplies the throughput rule's survival and is capped at 1: throughput 0.2 is
+    /// kept with 0.2 at scale 1 and 0.4 at scale 2; 0.6 is not rolled at scale 2. A survivor at
+    /// scale 2 carries half a fresh path's throughput (β/q = 1/2 in its largest channel).
+    #[test]
+    fn roulette_scale_multiplies_the_survival() {
+        let beta = Rgb::new(0.2, 0.1, 0.05);
+        assert!((roulette_survival(beta, 1.0, 1.0) - 0.2).abs() < 1e-7);
+        assert!((roulette_survival(beta, 1.0, 2.0) - 0.4).abs() < 1e-7);
+        assert_eq!(roulette_survival(Rgb::splat(0.6), 1.0, 2.0), 1.0);
+        assert_eq!(russian_roulette(beta, 1.0, 2.0, 0.45), None);
+        let survivor = russian_roulette(beta, 1.0, 2.0, 0.35).expect("u < q = 0.4 survives");
+        assert!((survivor.max_element() - 0.5).abs() < 1e-6, "{survivor:?}");
     }
 
     /// Refracting into η = 1.5 divides the radiance throughput by 2.25; the η² the sample record
@@ -486,32 +530,33 @@ mod tests {
         };
         bounce(Vec3::Z, &mut beta, &mut eta_scale);
         assert!((beta.max_element() - 1.0 / 2.25).abs() < 1e-5, "entering compresses: {beta:?}");
-        let q = roulette_survival(beta, eta_scale);
+        let q = roulette_survival(beta, eta_scale, 1.0);
         assert!((q - 1.0).abs() < 1e-5, "inside glass q = {q}");
-        let q_half = roulette_survival(beta * 0.5, eta_scale);
+        let q_half = roulette_survival(beta * 0.5, eta_scale, 1.0);
         assert!((q_half - 0.5).abs() < 1e-5, "albedo 0.5 inside glass: q = {q_half}");
         bounce(-Vec3::Z, &mut beta, &mut eta_scale);
         assert!((beta - Rgb::ONE).abs().max_element() < 1e-5 && (eta_scale - 1.0).abs() < 1e-5);
-        assert!((roulette_survival(beta, eta_scale) - 1.0).abs() < 1e-5);
+        assert!((roulette_survival(beta, eta_scale, 1.0) - 1.0).abs() < 1e-5);
     }
 
     /// E[reweighted throughput] = β for every β and η² state: over the midpoint grid u_k =
     /// (k + ½)/N the number of survivors differs from N·q by at most 1, so each channel's mean of
     /// survivor/β is within 1/(N q) of 1 (q ≥ 8.9e-4 here: ≤ 1.2e-2 at N = 10⁵), plus f32
     /// rounding of β/q (≤ 1e-6). A reweighting by 1/max βᵢ (forgetting η²) fails this: measured
-    /// 2.25 at β = (0.4, 0.3, 0.1), η² = 2.25 (bound 1.2e-5).
+    /// 2.25 at β = (0.4, 0.3, 0.1), η² = 2.25 (bound 1.2e-5). The scale-2 cases (half those
+    /// throughputs, so that every one still rolls) catch a reweighting that forgets the scale.
     #[test]
     fn roulette_keeps_the_expected_weight() {
         const N: usize = 100_000;
         let betas = [Rgb::new(0.4, 0.3, 0.1), Rgb::new(0.2, 0.05, 0.2), Rgb::new(1e-3, 2e-3, 5e-4)];
-        for beta in betas {
+        for (beta, scale) in betas.into_iter().flat_map(|b| [(b, 1.0f32), (b * 0.5, 2.0)]) {
             for eta_scale in [1.0f32, 2.25, 1.0 / 2.25] {
-                let q = roulette_survival(beta, eta_scale);
+                let q = roulette_survival(beta, eta_scale, scale);
                 assert!(q > 0.0 && q < 1.0, "{beta:?} {eta_scale}: q = {q}");
                 let mut sum = [0.0f64; 3];
                 for k in 0..N {
                     let u = ((k as f64 + 0.5) / N as f64) as f32;
-                    if let Some(b) = russian_roulette(beta, eta_scale, u) {
+                    if let Some(b) = russian_roulette(beta, eta_scale, scale, u) {
                         for (c, s) in sum.iter_mut().enumerate() {
                             *s += b[c] as f64;
                         }
