@@ -361,9 +361,9 @@ impl PathTracer {
 /// throughput rule is this with √(E[F²]·C/(V·c)) = 1; but a roll saves only the remaining path's
 /// cost c, a fraction of the whole sample's C that has already been paid (camera ray, first bounces),
 /// so the factor is above 1 unless the remaining path is far less noisy than the sample. Measured on
-/// ten scenes (docs/benchmarks.md, "Russian roulette's survival scale"), variance × rays improved by
-/// 4–30% at scales 2 to 4 (a plateau) against 1, except one scene within its noise (−1%); 2 is the
-/// cheapest point of the plateau. A survivor is reweighted by 1/q; it carries at most 1/scale
+/// eleven scenes (docs/benchmarks.md, "Russian roulette's survival scale"), efficiency per ray rose
+/// at scales 2 and 4 alike (a plateau): 25–31% on the door and the torus, 6–10% on the Cornell
+/// scenes, −1% to +4% (within noise) on the rest; 2 is the plateau's cheapest point. A survivor is reweighted by 1/q; it carries at most 1/scale
 /// of a fresh path's throughput, and `max_depth` bounds the paths that never roll.
 pub fn roulette_survival(beta: Rgb, eta_scale: f32, scale: f32) -> f32 {
     let m = scale * (beta * eta_scale).max_element();

@@ -1,0 +1,137 @@
+#!/usr/bin/env python3
+"""Russian roulette's survival scale in `pt` (`rr_scale`), measured on ten scenes (issue 20).
+
+For every scene and every scale it renders the scene with RENDERS seeds (`--seed 1..RENDERS`,
+`--set rr_scale=K`, everything else the scene's or pt's defaults) and reports:
+
+- MSE: the mean over pixels of the per-pixel sample variance of the luminance across the renders
+  (the variance of one image; no reference needed, as in scripts/peers.py), with its standard error
+  over pixels;
+- rays per sample (closest-hit plus shadow rays, from the render JSON's counters): the cost of a
+  sample, which the machine's load cannot skew;
+- CPU seconds per render (median);
+- the efficiency against scale 1, 1/(MSE x rays) and 1/(MSE x CPU s), as ratios to scale 1's.
+
+The same seeds are used at every scale, so the paths agree up to their first roulette decision that
+differs; the ratios are therefore less noisy than the standard errors suggest, but one scene's MSE
+can still move by a few per cent from its fireflies (the lamp and breakfast scenes).
+
+Scenes: the peers script's four (the Cornell box, its glossy and glass variants, the door), the
+mirror Cornell box and the environment scene of scenes/, and the five imported scenes of
+scenes/imported at a quarter of their resolution (written next to them as .quarter-*.toml while the
+script runs, so that their relative paths hold).
+
+    /work/peersenv/bin/python scripts/bench_rr_scale.py [--scales 1,2,4] [--renders 8] [--threads 2]
+
+Needs numpy and mitsuba (for reading EXR files), e.g. the peers virtualenv of DEVELOPERS.md.
+"""
+import argparse
+import json
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "scripts"))
+
+
+def peers_module():
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("peers", os.path.join(ROOT, "scripts", "peers.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def quarter_toml(name):
+    """scenes/imported/NAME.toml at a quarter of its resolution, next to it (relative paths hold)."""
+    src = os.path.join(ROOT, "scenes", "imported", f"{name}.toml")
+    text = open(src).read()
+    match = re.search(r"^resolution = \[(\d+), (\d+)\]", text, re.M)
+    w, h = int(match.group(1)) // 4, int(match.group(2)) // 4
+    text = text[:match.start()] + f"resolution = [{w}, {h}]" + text[match.end():]
+    dst = os.path.join(ROOT, "scenes", "imported", f".quarter-{name}.toml")
+    with open(dst, "w") as f:
+        f.write(text)
+    return dst
+
+
+def scenes(tmp):
+    """(name, scene path, spp): spp chosen so that one render takes about a second on 2 threads."""
+    peers = peers_module()
+    cc = peers.load_crosscheck()
+    out = []
+    for name in ["cornell-box", "cornell-glossy", "cornell-glass", "veach-ajar"]:
+        path = os.path.join(tmp, f"{name}.xml")
+        with open(path, "w") as f:
+            f.write(peers.scene_xml(cc, name, 17))
+        out.append((name if name != "veach-ajar" else "veach-ajar (door)", path, 64))
+    out.append(("cornell-mirror", os.path.join(ROOT, "scenes", "cornell-mirror.toml"), 32))
+    out.append(("environment", os.path.join(ROOT, "scenes", "environment.toml"), 16))
+    for name, spp in [("living-room", 4), ("staircase", 16), ("breakfast-room", 8), ("torus", 32),
+                      ("veach-lamp", 64)]:
+        out.append((f"{name} (1/4 res.)", quarter_toml(name), spp))
+    return out
+
+
+def luminance(path):
+    import mitsuba as mi
+    img = np.array(mi.Bitmap(path), dtype=np.float64)[..., :3]
+    return 0.2126 * img[..., 0] + 0.7152 * img[..., 1] + 0.0722 * img[..., 2]
+
+
+def measure(plexus, scene, spp, scale, renders, threads, tmp):
+    imgs, rays, cpu = [], [], []
+    for seed in range(1, renders + 1):
+        out = os.path.join(tmp, f"r{seed}.exr")
+        subprocess.run([plexus, "render", scene, "--integrator", "pt", "--spp", str(spp), "--seed", str(seed),
+                        "--threads", str(threads), "--set", f"rr_scale={scale}", "--out", out],
+                       check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        stats = json.load(open(os.path.join(tmp, f"r{seed}.json")))
+        c = stats["counters"]
+        rays.append((c["rays"] + c["shadow_rays"]) / c["samples"])
+        cpu.append(stats["cpu_time_s"])
+        imgs.append(luminance(out))
+    var = np.stack(imgs).var(axis=0, ddof=1).ravel()
+    return var.mean(), var.std(ddof=1) / np.sqrt(var.size), statistics.mean(rays), statistics.median(cpu)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--plexus", default=os.path.join(ROOT, "target", "release", "plexus"))
+    parser.add_argument("--scales", default="1,2,4")
+    parser.add_argument("--renders", type=int, default=8)
+    parser.add_argument("--threads", type=int, default=2)
+    args = parser.parse_args()
+    scales = [float(s) for s in args.scales.split(",")]
+    if scales[0] != 1.0:
+        sys.exit("the first scale must be 1 (the ratios are against it)")
+    print(f"load average before: {os.getloadavg()[0]:.2f}", file=sys.stderr)
+    print("| scene | spp | rr_scale | MSE | rays / sample | CPU s | efficiency vs 1: 1/(MSE x rays) | 1/(MSE x CPU s) |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    with tempfile.TemporaryDirectory() as tmp:
+        try:
+            for name, path, spp in scenes(tmp):
+                base = None
+                for scale in scales:
+                    mse, se, rays, cpu = measure(args.plexus, path, spp, scale, args.renders, args.threads, tmp)
+                    if base is None:
+                        base = (mse, rays, cpu)
+                    by_rays = base[0] * base[1] / (mse * rays)
+                    by_cpu = base[0] * base[2] / (mse * cpu)
+                    print(f"| {name} | {spp} | {scale:g} | {mse:.4g} ± {se / mse * 100:.1f}% | {rays:.3f} | {cpu:.3f} "
+                          f"| **{by_rays:.2f}** | {by_cpu:.2f} |", flush=True)
+        finally:
+            for f in os.listdir(os.path.join(ROOT, "scenes", "imported")):
+                if f.startswith(".quarter-"):
+                    os.remove(os.path.join(ROOT, "scenes", "imported", f))
+    print(f"load average after: {os.getloadavg()[0]:.2f}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
