@@ -363,8 +363,9 @@ impl PathTracer {
 /// so the factor is above 1 unless the remaining path is far less noisy than the sample. Measured on
 /// eleven scenes (docs/benchmarks.md, "Russian roulette's survival scale"), efficiency per ray rose
 /// at scales 2 and 4 alike (a plateau): 25–31% on the door and the torus, 6–10% on the Cornell
-/// scenes, −1% to +4% (within noise) on the rest; 2 is the plateau's cheapest point. A survivor is reweighted by 1/q; it carries at most 1/scale
-/// of a fresh path's throughput, and `max_depth` bounds the paths that never roll.
+/// scenes, −1% to +4% (within noise) on the rest; 2 is the plateau's cheapest point. A survivor is
+/// reweighted by 1/q; it carries at most 1/scale of a fresh path's throughput, and `max_depth`
+/// bounds the paths that never roll.
 pub fn roulette_survival(beta: Rgb, eta_scale: f32, scale: f32) -> f32 {
     let m = scale * (beta * eta_scale).max_element();
     // `!(m < 1)` also sends a NaN to "no roll"; `li` drops non-finite throughputs before rolling.
