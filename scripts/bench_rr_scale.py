@@ -22,6 +22,7 @@ scenes/imported at a quarter of their resolution (written next to them as .quart
 script runs, so that their relative paths hold).
 
     /work/peersenv/bin/python scripts/bench_rr_scale.py [--scales 1,2,4] [--renders 8] [--threads 2]
+        [--scenes veach-lamp,torus]
 
 Needs numpy and mitsuba (for reading EXR files), e.g. the peers virtualenv of DEVELOPERS.md.
 """
@@ -37,7 +38,6 @@ import tempfile
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "scripts"))
 
 
 def peers_module():
@@ -61,9 +61,8 @@ def quarter_toml(name):
     return dst
 
 
-def scenes(tmp):
+def scenes(peers, tmp):
     """(name, scene path, spp): spp chosen so that one render takes about a second on 2 threads."""
-    peers = peers_module()
     cc = peers.load_crosscheck()
     out = []
     for name in ["cornell-box", "cornell-glossy", "cornell-glass", "veach-ajar"]:
@@ -79,13 +78,10 @@ def scenes(tmp):
     return out
 
 
-def luminance(path):
+def measure(peers, plexus, scene, spp, scale, renders, threads, tmp):
+    """MSE of one image and its standard error (peers.py's `variance_per_image`), mean rays per
+    sample, median CPU seconds."""
     import mitsuba as mi
-    img = np.array(mi.Bitmap(path), dtype=np.float64)[..., :3]
-    return 0.2126 * img[..., 0] + 0.7152 * img[..., 1] + 0.0722 * img[..., 2]
-
-
-def measure(plexus, scene, spp, scale, renders, threads, tmp):
     imgs, rays, cpu = [], [], []
     for seed in range(1, renders + 1):
         out = os.path.join(tmp, f"r{seed}.exr")
@@ -96,9 +92,9 @@ def measure(plexus, scene, spp, scale, renders, threads, tmp):
         c = stats["counters"]
         rays.append((c["rays"] + c["shadow_rays"]) / c["samples"])
         cpu.append(stats["cpu_time_s"])
-        imgs.append(luminance(out))
-    var = np.stack(imgs).var(axis=0, ddof=1).ravel()
-    return var.mean(), var.std(ddof=1) / np.sqrt(var.size), statistics.mean(rays), statistics.median(cpu)
+        imgs.append(np.array(mi.Bitmap(out))[..., :3])
+    mse, se = peers.variance_per_image(imgs)
+    return mse, se, statistics.mean(rays), statistics.median(cpu)
 
 
 def main():
@@ -107,6 +103,7 @@ def main():
     parser.add_argument("--scales", default="1,2,4")
     parser.add_argument("--renders", type=int, default=8)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--scenes", help="comma-separated names' prefixes (default: all eleven)")
     args = parser.parse_args()
     scales = [float(s) for s in args.scales.split(",")]
     if scales[0] != 1.0:
@@ -114,12 +111,15 @@ def main():
     print(f"load average before: {os.getloadavg()[0]:.2f}", file=sys.stderr)
     print("| scene | spp | rr_scale | MSE | rays / sample | CPU s | efficiency vs 1: 1/(MSE x rays) | 1/(MSE x CPU s) |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    peers = peers_module()
     with tempfile.TemporaryDirectory() as tmp:
         try:
-            for name, path, spp in scenes(tmp):
+            for name, path, spp in scenes(peers, tmp):
+                if args.scenes and not any(name.startswith(p) for p in args.scenes.split(",")):
+                    continue
                 base = None
                 for scale in scales:
-                    mse, se, rays, cpu = measure(args.plexus, path, spp, scale, args.renders, args.threads, tmp)
+                    mse, se, rays, cpu = measure(peers, args.plexus, path, spp, scale, args.renders, args.threads, tmp)
                     if base is None:
                         base = (mse, rays, cpu)
                     by_rays = base[0] * base[1] / (mse * rays)
