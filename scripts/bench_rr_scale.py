@@ -24,6 +24,9 @@ script runs, so that their relative paths hold).
     /work/peersenv/bin/python scripts/bench_rr_scale.py [--scales 1,2,4] [--renders 8] [--threads 2]
         [--scenes veach-lamp,torus]
 
+`--variants "rr_scale=2;rr_scale=2,rr_depth=3"` compares groups of pt settings instead of scales
+(the first group is the base of the ratios), e.g. the roulette's start depth at the default scale.
+
 Needs numpy and mitsuba (for reading EXR files), e.g. the peers virtualenv of DEVELOPERS.md.
 """
 import argparse
@@ -78,7 +81,7 @@ def scenes(peers, tmp):
     return out
 
 
-def measure(peers, plexus, scene, spp, scale, renders, threads, tmp):
+def measure(peers, plexus, scene, spp, settings, renders, threads, tmp):
     """MSE of one image and its standard error (peers.py's `variance_per_image`), mean rays per
     sample, median CPU seconds."""
     import mitsuba as mi
@@ -86,7 +89,7 @@ def measure(peers, plexus, scene, spp, scale, renders, threads, tmp):
     for seed in range(1, renders + 1):
         out = os.path.join(tmp, f"r{seed}.exr")
         subprocess.run([plexus, "render", scene, "--integrator", "pt", "--spp", str(spp), "--seed", str(seed),
-                        "--threads", str(threads), "--set", f"rr_scale={scale}", "--out", out],
+                        "--threads", str(threads), *[a for kv in settings for a in ("--set", kv)], "--out", out],
                        check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         stats = json.load(open(os.path.join(tmp, f"r{seed}.json")))
         c = stats["counters"]
@@ -103,13 +106,20 @@ def main():
     parser.add_argument("--scales", default="1,2,4")
     parser.add_argument("--renders", type=int, default=8)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--variants", help="';'-separated groups of ','-separated pt settings "
+                        "(KEY=VALUE), compared instead of --scales; the first is the base")
     parser.add_argument("--scenes", help="comma-separated names' prefixes (default: all eleven)")
     args = parser.parse_args()
-    scales = [float(s) for s in args.scales.split(",")]
-    if scales[0] != 1.0:
-        sys.exit("the first scale must be 1 (the ratios are against it)")
+    if args.variants:
+        variants = [group.split(",") for group in args.variants.split(";")]
+    else:
+        scales = [float(s) for s in args.scales.split(",")]
+        if scales[0] != 1.0:
+            sys.exit("the first scale must be 1 (the ratios are against it)")
+        variants = [[f"rr_scale={s:g}"] for s in scales]
     print(f"load average before: {os.getloadavg()[0]:.2f}", file=sys.stderr)
-    print("| scene | spp | rr_scale | MSE | rays / sample | CPU s | efficiency vs 1: 1/(MSE x rays) | 1/(MSE x CPU s) |")
+    print("| scene | spp | settings | MSE | rays / sample | CPU s | efficiency vs the first: 1/(MSE x rays) "
+          "| 1/(MSE x CPU s) |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     peers = peers_module()
     with tempfile.TemporaryDirectory() as tmp:
@@ -118,13 +128,14 @@ def main():
                 if args.scenes and not any(name.startswith(p) for p in args.scenes.split(",")):
                     continue
                 base = None
-                for scale in scales:
-                    mse, se, rays, cpu = measure(peers, args.plexus, path, spp, scale, args.renders, args.threads, tmp)
+                for settings in variants:
+                    mse, se, rays, cpu = measure(peers, args.plexus, path, spp, settings, args.renders, args.threads,
+                                                 tmp)
                     if base is None:
                         base = (mse, rays, cpu)
                     by_rays = base[0] * base[1] / (mse * rays)
                     by_cpu = base[0] * base[2] / (mse * cpu)
-                    print(f"| {name} | {spp} | {scale:g} | {mse:.4g} ± {se / mse * 100:.1f}% | {rays:.3f} | {cpu:.3f} "
+                    print(f"| {name} | {spp} | {' '.join(settings)} | {mse:.4g} ± {se / mse * 100:.1f}% | {rays:.3f} | {cpu:.3f} "
                           f"| **{by_rays:.2f}** | {by_cpu:.2f} |", flush=True)
         finally:
             for f in os.listdir(os.path.join(ROOT, "scenes", "imported")):
