@@ -88,9 +88,12 @@ def measure(peers, plexus, scene, spp, settings, renders, threads, tmp):
     imgs, rays, cpu = [], [], []
     for seed in range(1, renders + 1):
         out = os.path.join(tmp, f"r{seed}.exr")
-        subprocess.run([plexus, "render", scene, "--integrator", "pt", "--spp", str(spp), "--seed", str(seed),
-                        "--threads", str(threads), *[a for kv in settings for a in ("--set", kv)], "--out", out],
-                       check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        cmd = [plexus, "render", scene, "--integrator", "pt", "--spp", str(spp), "--seed", str(seed),
+               "--threads", str(threads), *[a for kv in settings for a in ("--set", kv)], "--out", out]
+        done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        if done.returncode != 0:
+            # A mistyped setting (e.g. `rr_dept=2`) is refused by plexus: say why, not just that.
+            sys.exit(f"{' '.join(cmd)} failed:\n{done.stderr}")
         stats = json.load(open(os.path.join(tmp, f"r{seed}.json")))
         c = stats["counters"]
         rays.append((c["rays"] + c["shadow_rays"]) / c["samples"])
@@ -135,8 +138,8 @@ def main():
                         base = (mse, rays, cpu)
                     by_rays = base[0] * base[1] / (mse * rays)
                     by_cpu = base[0] * base[2] / (mse * cpu)
-                    print(f"| {name} | {spp} | {' '.join(settings)} | {mse:.4g} ± {se / mse * 100:.1f}% | {rays:.3f} | {cpu:.3f} "
-                          f"| **{by_rays:.2f}** | {by_cpu:.2f} |", flush=True)
+                    print(f"| {name} | {spp} | {' '.join(settings)} | {mse:.4g} ± {se / mse * 100:.1f}% | {rays:.3f} "
+                          f"| {cpu:.3f} | **{by_rays:.2f}** | {by_cpu:.2f} |", flush=True)
         finally:
             for f in os.listdir(os.path.join(ROOT, "scenes", "imported")):
                 if f.startswith(".quarter-"):
