@@ -9,6 +9,7 @@
 #include <cstring>
 #include <exception>
 #include <initializer_list>
+#include <memory>
 #include <string>
 
 namespace {
@@ -116,11 +117,22 @@ int can_write(const char *filename, char *msg, size_t msg_len) {
     return PLX_OK;
 }
 
+// Opens `path` for reading with its colour channels as the file stores them. Without the hint,
+// OpenImageIO multiplies the colours of a file with unassociated alpha (PNG, TGA, some TIFFs) by
+// their alpha on read, so a texel of alpha 0 reads as black whatever its colour; plexus ignores a
+// texture's alpha (opacity is its own parameter) and Mitsuba 3 reads such colours as stored. EXR
+// stores associated alpha, which the hint leaves alone.
+std::unique_ptr<OIIO::ImageInput> open_unassociated(const char *path) {
+    OIIO::ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);
+    return OIIO::ImageInput::open(path, &config);
+}
+
 int read_info(const char *path, plx_image_info *info, char *msg, size_t msg_len) {
     if (path == nullptr || info == nullptr) {
         return fail(msg, msg_len, PLX_ERR_ARGUMENT, "null path or info");
     }
-    auto in = OIIO::ImageInput::open(path);
+    auto in = open_unassociated(path);
     if (!in) {
         return fail(msg, msg_len, PLX_ERR_OPEN, global_error());
     }
@@ -142,7 +154,7 @@ int read_image(const char *path, int width, int height, int channels, float *dat
     if (path == nullptr || data == nullptr || width <= 0 || height <= 0 || channels <= 0) {
         return fail(msg, msg_len, PLX_ERR_ARGUMENT, "null path or buffer, or a non-positive size");
     }
-    auto in = OIIO::ImageInput::open(path);
+    auto in = open_unassociated(path);
     if (!in) {
         return fail(msg, msg_len, PLX_ERR_OPEN, global_error());
     }

@@ -114,6 +114,31 @@ fn images_read_through_oiio_with_their_encoding() {
     assert!(read_image(&dir.path().join("missing.png")).is_err());
 }
 
+/// A PNG's colours read as stored, whatever its alpha: plexus ignores a texture's alpha channel
+/// (opacity is its own parameter), as Mitsuba 3 does. The file is 2×1 RGBA, 8 bits, unassociated
+/// as PNG always is: (255, 255, 255, 0) and (255, 0, 0, 128). OpenImageIO's default multiplies
+/// the colours by alpha on read, which made the first texel black and the second half red: the
+/// living room's leaves (leaf.png, white where alpha is 0, an opacity mask read from the colours)
+/// were see-through where Mitsuba 3 renders them opaque, 9.5% too dark in the crosscheck's region 8.
+#[test]
+fn png_colours_are_read_unassociated_from_alpha() {
+    const RGBA_PNG: [u8; 74] = [
+        0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52, 0x00, 0x00,
+        0x00, 0x02, 0x00, 0x00, 0x00, 0x01, 0x08, 0x06, 0x00, 0x00, 0x00, 0xf4, 0x22, 0x7f, 0x8a, 0x00, 0x00, 0x00,
+        0x11, 0x49, 0x44, 0x41, 0x54, 0x78, 0xda, 0x63, 0xf8, 0xff, 0xff, 0x3f, 0xc3, 0x7f, 0x06, 0x86, 0x06, 0x00,
+        0x19, 0x70, 0x04, 0x7d, 0x5e, 0x3e, 0xdb, 0xa4, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42,
+        0x60, 0x82,
+    ];
+    let dir = tempfile::tempdir().expect("temp dir");
+    let png = dir.path().join("rgba.png");
+    std::fs::write(&png, RGBA_PNG).expect("write png");
+    let read = read_image(&png).expect("read png");
+    assert_eq!((read.width, read.height, read.channels), (2, 1, 4));
+    let texels = TexelImage::from_read(&read, read.srgb.unwrap_or(true));
+    assert_eq!(texels.texel(0, 0), Rgb::ONE, "alpha 0 must not blacken the colour");
+    assert_eq!(texels.texel(1, 0), Rgb::new(1.0, 0.0, 0.0), "alpha 0.5 must not halve the colour");
+}
+
 /// The lookup as it was written first (f64 `rem_euclid`, `floor`, each texel index wrapped by an
 /// integer `rem_euclid`): the oracle for the faster `TexelImage::bilinear`.
 fn bilinear_reference(img: &TexelImage, s: f32, t: f32) -> Rgb {
