@@ -49,7 +49,8 @@ pub enum Mis {
 pub struct PtSettings {
     /// Maximum number of bounces (scattering events) of a path; 1 gives direct lighting only.
     pub max_depth: u32,
-    /// Russian roulette starts after this many bounces.
+    /// Russian roulette starts after this many bounces (2: as pbrt-v4, whose roulette first rolls
+    /// after its second bounce; docs/benchmarks.md, "Russian roulette's start depth").
     pub rr_depth: u32,
     /// Russian roulette keeps a path with probability min(1, `rr_scale` × its throughput)
     /// (`roulette_survival`); 1 is pbrt's and Mitsuba's rule. Must be positive and finite.
@@ -64,7 +65,7 @@ pub struct PtSettings {
 
 impl Default for PtSettings {
     fn default() -> Self {
-        PtSettings { max_depth: 16, rr_depth: 5, rr_scale: 2.0, mis: Mis::Power, sampler: SamplerKind::default() }
+        PtSettings { max_depth: 16, rr_depth: 2, rr_scale: 2.0, mis: Mis::Power, sampler: SamplerKind::default() }
     }
 }
 
@@ -465,7 +466,7 @@ mod tests {
         let pt = PathTracer::from_params(&toml::Table::new()).expect("defaults");
         assert_eq!(
             pt.settings,
-            PtSettings { max_depth: 16, rr_depth: 5, rr_scale: 2.0, mis: Mis::Power, sampler: SamplerKind::Sobol }
+            PtSettings { max_depth: 16, rr_depth: 2, rr_scale: 2.0, mis: Mis::Power, sampler: SamplerKind::Sobol }
         );
         let t: toml::Table = toml::from_str("max_depth = 3\nmis = \"balance\"").expect("toml");
         let pt = PathTracer::from_params(&t).expect("valid");
