@@ -18,26 +18,31 @@
 //! renders, seeds 7919·k): measured 1.84 there, against 0.39 (Cornell box) and 0.44 (lamp) for the
 //! right depth.
 //!
-//! The five interiors (staircase, breakfast room, living room, veach-ajar, torus) were added with
-//! references at 64 spp × 8 renders (their JSON says how, with each scene's substitutes and model
-//! tolerance and its reason). Measured with scripts/crosscheck.py at that budget (plexus seeds
-//! 7919·k), largest |diff|/bound and image means plexus vs Mitsuba 3: living room 0.18 (−0.14%),
-//! veach-ajar 0.37 (+1.76%, tolerance 5%: the textured conductor floor's Fresnel curve), torus
-//! 0.43 (−0.19%), staircase 0.64 (+2.27%), breakfast room 0.39 (+0.39%); tolerance 3% elsewhere.
+//! The five interiors (staircase, breakfast room, living room, veach-ajar, torus) have references
+//! at 64 spp × 32 renders (their JSON says how, with each scene's substitutes and model tolerance
+//! and its reason; 8 renders until session 17). Measured with scripts/crosscheck.py at that budget
+//! on both sides (plexus seeds 7919·k, `rr_depth` 2), largest |diff|/bound and image means plexus
+//! vs Mitsuba 3: living room 0.23 (−0.02%), veach-ajar 0.63 (+2.05%, tolerance 5%: the textured
+//! conductor floor's Fresnel curve), torus 0.43 (+0.33%), staircase 0.42 (−0.14%), breakfast room
+//! 0.33 (−0.02%); tolerance 3% elsewhere.
 //! The sunsky scenes (breakfast room, torus) render scenes/crosscheck/NAME.toml, the XML with the
 //! sun and sky replaced in both renderers by a constant sky and an emitting sphere 1° in radius.
 //! The living room with its sky turned 180° (the importer's former envmap rotation, the bug this
-//! cross-check found) measured 14.6 (image mean −46.7%): `living_room_with_the_sky_turned_around_fails`.
-//! The living room's 0.85 before session 17 was a second bug hiding under the bound: OpenImageIO
-//! multiplied leaf.png's colours by its alpha on read, so the plant's leaves (an opacity mask read
-//! from those colours, white where alpha is 0) were see-through where Mitsuba 3 renders them
-//! opaque, region 8 9.5% too dark (0.5355 ± 0.0007 over 128 renders against Mitsuba's 0.5914 ±
-//! 0.0020 over 64). The 3% tolerance plus Z standard errors of an 8-render reference covered it;
-//! texture::tests::png_colours_are_read_unassociated_from_alpha now pins the reading.
-//! Measured by this test (same seeds): living room 0.18, veach-ajar 0.37, torus 0.43, staircase
-//! 0.64, breakfast room 0.39; the turned sky 14.57. Test time under load (load average ~20 on 2
-//! cores, `cargo test --release --test crosscheck`): 7 tests 235 s wall (72 s CPU), the staircase and
-//! breakfast room 78 s more.
+//! cross-check found first) measures 17.1 here: `living_room_with_the_sky_turned_around_fails`.
+//!
+//! A second bug hid under the bound of the 8-render references: OpenImageIO multiplied leaf.png's
+//! colours by its alpha on read, so the living room plant's leaves (an opacity mask read from those
+//! colours, white where alpha is 0) were see-through where Mitsuba 3 renders them opaque, region 8
+//! 9.5% too dark (0.5352 ± 0.0008 over 128 renders against Mitsuba's 0.5914 ± 0.0020 over 64). The
+//! 3% tolerance plus 5 standard errors of an 8-render reference (1.15% each in that region) covered
+//! it: |diff|/bound 0.85–1.01. Against the 32-render references the same bug measures 1.39 and
+//! fails (checked with the reading hint turned off); texture::tests::
+//! png_colours_are_read_unassociated_from_alpha pins the reading itself.
+//! Measured by this test (same seeds, session 17): living room 0.40, veach-ajar 0.54, torus 0.37,
+//! staircase 0.23, breakfast room 0.28, Cornell box 0.37, veach lamp 0.47; half the depth on the
+//! Cornell box 1.65. Test time (`cargo test --release --test crosscheck`): all 9 tests 19 s wall
+//! on an idle machine (session 17); under a load average of ~20 on 2 cores, 7 tests took 235 s and
+//! the staircase and breakfast room 78 s more.
 
 use std::path::Path;
 
