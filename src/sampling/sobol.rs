@@ -105,6 +105,14 @@ impl UniformSource for SampleStream<'_> {
             SampleStream::Sobol(s) => s.next_n(),
         }
     }
+    /// Sobol: the branch's own stream ([`SobolStream::branch`]); independent: the item's stream
+    /// read on, as every stream of the independent sampler is.
+    fn with_branch<R>(&mut self, k: u32, f: impl FnOnce(&mut Self) -> R) -> R {
+        match self {
+            SampleStream::Independent(_) => f(self),
+            SampleStream::Sobol(s) => f(&mut SampleStream::Sobol(s.branch(k))),
+        }
+    }
 }
 
 /// Point `index` of a padded Owen-scrambled Sobol sequence keyed by `key`, read in 4D sets (the
@@ -137,6 +145,13 @@ impl SobolStream {
         SobolStream { key, index_reversed: index.reverse_bits(), pair: u32::MAX, values: [[0.0; 4]; 2], position: 8 }
     }
 
+    /// The stream of branch `k` ≥ 1 of a path split at a vertex: the same point index (so a
+    /// pixel's samples stay stratified in every branch) of a sequence keyed by this stream's key and
+    /// `k`, read from its first set (so a branch's dimensions do not depend on the path before it).
+    pub fn branch(&self, k: u32) -> SobolStream {
+        SobolStream::new(splitmix64(self.key ^ 0xB7A4_C1D5_0000_0000 ^ k as u64), self.index_reversed.reverse_bits())
+    }
+
     fn start_next_pair(&mut self) {
         self.pair = self.pair.wrapping_add(1);
         let first_set = self.pair.wrapping_mul(2);
@@ -158,6 +173,9 @@ impl UniformSource for SobolStream {
     }
     fn next_2d(&mut self) -> [f32; 2] {
         self.next_n()
+    }
+    fn with_branch<R>(&mut self, k: u32, f: impl FnOnce(&mut Self) -> R) -> R {
+        f(&mut self.branch(k))
     }
     /// A block of `N` numbers: from one set if `N` ≤ 4 (starting the next set when the rest of
     /// the current one is too short), else from the start of a fresh set on.

@@ -23,6 +23,16 @@ pub trait UniformSource {
         }
         u
     }
+    /// Runs `f` on the numbers of branch `k` ≥ 1 of a path split at a vertex (`pt`'s
+    /// `first_bounce_paths`). Here: this source itself, read on after the branch before it; a
+    /// source with streams of its own (`SampleStream`'s Sobol points) gives each branch one.
+    fn with_branch<R>(&mut self, k: u32, f: impl FnOnce(&mut Self) -> R) -> R
+    where
+        Self: Sized,
+    {
+        let _ = k;
+        f(self)
+    }
 }
 
 impl UniformSource for Rng {
