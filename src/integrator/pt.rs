@@ -162,21 +162,21 @@ impl PathTracer {
     pub fn li(&self, scene: &Scene, ray: Ray, rng: &mut impl UniformSource, counters: &mut Counters) -> Rgb {
         let start =
             PathState { beta: Rgb::ONE, eta_scale: 1.0, specular_bounce: true, prev_pdf: 0.0, prev_p: ray.o, depth: 0 };
-        match self.settings.first_bounce_paths {
-            1 => self.trace::<false>(scene, ray, start, 1, rng, counters),
-            n => self.trace::<true>(scene, ray, start, n, rng, counters),
+        if self.settings.first_bounce_paths > 1 {
+            self.trace::<true>(scene, ray, start, rng, counters)
+        } else {
+            self.trace::<false>(scene, ray, start, rng, counters)
         }
     }
 
     /// The path from `ray` on, its state at the vertex `ray` leaves being `start`; with `SPLITS`,
-    /// split into `split` paths at its first vertex (depth 1). Unsplit paths get their own copy of
-    /// the loop without the split's bookkeeping (a few per cent of the door's time otherwise).
+    /// split into `first_bounce_paths` paths at its first vertex (depth 1). Unsplit paths get
+    /// their own copy of the loop without the split's bookkeeping.
     fn trace<const SPLITS: bool>(
         &self,
         scene: &Scene,
         mut ray: Ray,
         start: PathState,
-        split: u32,
         rng: &mut impl UniformSource,
         counters: &mut Counters,
     ) -> Rgb {
@@ -336,9 +336,9 @@ impl PathTracer {
             // reweighted by n, undoing the split (measured on the door: 8 branches then reduced
             // the variance by 9% instead of about 8×).
             if SPLITS && depth == 1 {
+                let n = self.settings.first_bounce_paths as f32;
+                (beta, eta_scale) = (beta * (1.0 / n), eta_scale * n);
                 split_vertex = Some(SplitVertex { material, si, wo, beta, eta_scale });
-                beta *= 1.0 / split as f32;
-                eta_scale *= split as f32;
             }
 
             // Continue the path by sampling the BSDF.
@@ -353,36 +353,34 @@ impl PathTracer {
             ray = next;
         }
         resolve(&mut pending_shadow, &mut l, counters);
-        if let Some(v) = split_vertex.filter(|_| SPLITS) {
-            for k in 1..split {
-                let c = rng.with_branch(k, |rng| self.trace_branch(scene, &v, split, rng, counters));
+        if let Some(v) = split_vertex {
+            for k in 1..self.settings.first_bounce_paths {
+                let c = rng.with_branch(k, |rng| self.trace_branch(scene, &v, rng, counters));
                 add(&mut l, c, counters);
             }
         }
         l
     }
 
-    /// Branch k ≥ 1 of a path split at its first vertex `v` into `split`, with 1/`split` of the
-    /// throughput: its own BSDF sample there (the first block of `rng`, the branch's stream; the
-    /// vertex's light sample was branch 0's, for all), then the path on from there, unsplit.
+    /// Branch k ≥ 1 of a path split at its first vertex `v`: its own BSDF sample there (the first
+    /// block of `rng`, the branch's stream; the vertex's light sample was branch 0's, for all), then
+    /// the path on from there, unsplit.
     fn trace_branch(
         &self,
         scene: &Scene,
         v: &SplitVertex,
-        split: u32,
         rng: &mut impl UniformSource,
         counters: &mut Counters,
     ) -> Rgb {
         let u_bsdf: [f32; 4] = rng.next_n();
-        // Roulette looks at the throughput without the split's 1/n (see `trace`).
-        let (mut beta, mut eta_scale) = (v.beta * (1.0 / split as f32), v.eta_scale * split as f32);
+        let (mut beta, mut eta_scale) = (v.beta, v.eta_scale);
         let Some((ray, bs)) = self.scatter(&v.material, &v.si, v.wo, u_bsdf, 1, &mut beta, &mut eta_scale, counters)
         else {
             return Rgb::ZERO;
         };
         let state =
             PathState { beta, eta_scale, specular_bounce: bs.delta, prev_pdf: bs.pdf, prev_p: v.si.p, depth: 1 };
-        self.trace::<false>(scene, ray, state, 1, rng, counters)
+        self.trace::<false>(scene, ray, state, rng, counters)
     }
 
     /// The continuation from a vertex at `depth`: samples the BSDF with `u` (three numbers, then
@@ -452,7 +450,9 @@ struct PathState {
     depth: u32,
 }
 
-/// The first vertex of a split path: what its other branches sample the BSDF from.
+/// The first vertex of a split path: what its other branches sample the BSDF from, and the
+/// state every branch starts from there: 1/n of the path's throughput, and `eta_scale` times n so
+/// that roulette judges a branch by the unsplit throughput.
 #[derive(Clone, Copy, Debug)]
 struct SplitVertex {
     material: Bsdf,
