@@ -117,26 +117,9 @@ pub fn stats_paths(images: &[PathBuf]) -> Vec<PathBuf> {
 /// renamed into place when complete and removed otherwise.
 pub fn write(path: &Path, stats: &RenderStats) -> anyhow::Result<()> {
     use std::io::Write;
-    use std::os::unix::fs::PermissionsExt;
-    let text = serde_json::to_string_pretty(stats)?;
-    let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let written = tempfile::Builder::new()
-        .prefix(&format!(".{file_name}.tmp-"))
-        // 0666 before the umask, as `std::fs::write` would create the file, not tempfile's 0600.
-        .permissions(std::fs::Permissions::from_mode(0o666))
-        .tempfile_in(dir)
-        .and_then(|mut file| {
-            // A second Ctrl-C exits at once: the guard has its handler remove this file first.
-            let _interrupt_guard = plexus::interrupt::TempGuard::new(file.path());
-            file.write_all((text + "\n").as_bytes())?;
-            file.persist(path).map_err(|e| e.error)?;
-            Ok(())
-        });
-    written.map_err(|e| anyhow::anyhow!("cannot write the stats file {}: {e}", path.display()))
+    let text = serde_json::to_string_pretty(stats)? + "\n";
+    plexus::interrupt::write_atomically(path, false, |e| e, |_, file| file.write_all(text.as_bytes()))
+        .map_err(|e| anyhow::anyhow!("cannot write the stats file {}: {e}", path.display()))
 }
 
 #[cfg(test)]

@@ -303,28 +303,13 @@ pub fn check_output_path(path: &Path) -> Result<(), ImageWriteError> {
     if status != PLX_OK {
         return Err(ImageWriteError::UnsupportedFormat { path: path.to_path_buf(), extension: ext });
     }
-    // Dropping the probe removes it.
+    // Dropping the probe removes it; a second Ctrl-C meanwhile waits for that.
+    let _writing = crate::interrupt::FileWriting::enter();
     tempfile::Builder::new()
         .prefix(".plexus-write-check-")
         .tempfile_in(dir)
         .map_err(|source| ImageWriteError::NotWritable { path: path.to_path_buf(), dir: dir.to_path_buf(), source })?;
     Ok(())
-}
-
-/// A new, empty hidden file beside `path` that keeps its extension (OpenImageIO picks the format
-/// by it), deleted when dropped unless persisted (renamed) into place. Created with mode 0666
-/// before the umask, as OpenImageIO would create the image itself, rather than tempfile's 0600,
-/// so the renamed image has the permissions of any other file the user writes.
-fn temp_file_beside(path: &Path, ext: &str) -> Result<tempfile::TempPath, ImageWriteError> {
-    use std::os::unix::fs::PermissionsExt;
-    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    tempfile::Builder::new()
-        .prefix(&format!(".{stem}.plexus-tmp-"))
-        .suffix(&format!(".{ext}"))
-        .permissions(std::fs::Permissions::from_mode(0o666))
-        .tempfile_in(target_dir(path))
-        .map(tempfile::NamedTempFile::into_temp_path)
-        .map_err(|source| ImageWriteError::Io { path: path.to_path_buf(), source })
 }
 
 /// Writes `image` to `path` in the format its extension names (see the module documentation).
@@ -364,36 +349,33 @@ fn encode_through_temp_file(path: &Path, image: &Image, opts: &WriteOptions) -> 
         }
     };
 
-    // `check_output_path` guaranteed an extension.
-    let ext = path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
-    let temp = temp_file_beside(path, &ext)?;
-    // A second Ctrl-C exits at once: the guard has its handler remove this file first.
-    let _interrupt_guard = crate::interrupt::TempGuard::new(&temp);
-    let c_temp = c_path(&temp)?;
-    let mut buf = [0u8; 1024];
-    // SAFETY: `c_temp` is NUL-terminated; `data` points to width*height*3 values of `data_type`
-    // (`floats` or `bytes`, alive until the end of this function); `buf` is writable for its
-    // length; the shim catches every C++ exception.
-    let status = unsafe {
-        plx_oiio_write_image(
-            c_temp.as_ptr(),
-            width,
-            height,
-            3,
-            data_type,
-            data,
-            pixel_type,
-            buf.as_mut_ptr() as *mut c_char,
-            buf.len(),
-        )
-    };
-    if status != PLX_OK {
-        // Messages may name the temporary file; the user only knows the name they asked for.
-        let text = message(&buf).replace(&temp.display().to_string(), &path.display().to_string());
-        return Err(ImageWriteError::Oiio { path: path.to_path_buf(), message: text });
-    }
-    temp.persist(path).map_err(|e| ImageWriteError::Io { path: path.to_path_buf(), source: e.error })?;
-    Ok(())
+    let io_error = |source| ImageWriteError::Io { path: path.to_path_buf(), source };
+    crate::interrupt::write_atomically(path, true, io_error, |temp, _| {
+        let c_temp = c_path(temp)?;
+        let mut buf = [0u8; 1024];
+        // SAFETY: `c_temp` is NUL-terminated; `data` points to width*height*3 values of `data_type`
+        // (`floats` or `bytes`, alive until the end of this function); `buf` is writable for its
+        // length; the shim catches every C++ exception.
+        let status = unsafe {
+            plx_oiio_write_image(
+                c_temp.as_ptr(),
+                width,
+                height,
+                3,
+                data_type,
+                data,
+                pixel_type,
+                buf.as_mut_ptr() as *mut c_char,
+                buf.len(),
+            )
+        };
+        if status != PLX_OK {
+            // Messages may name the temporary file; the user only knows the name they asked for.
+            let text = message(&buf).replace(&temp.display().to_string(), &path.display().to_string());
+            return Err(ImageWriteError::Oiio { path: path.to_path_buf(), message: text });
+        }
+        Ok(())
+    })
 }
 
 #[cfg(test)]

@@ -176,24 +176,12 @@ impl StateFile {
     pub fn write(&self, path: &Path) -> Result<(), StateError> {
         let err = |source| StateError::Write { path: path.to_path_buf(), source };
         let body = encode(self)?;
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        use std::os::unix::fs::PermissionsExt;
-        let mut file = tempfile::Builder::new()
-            .prefix(&format!(".{name}.plexus-tmp-"))
-            .permissions(std::fs::Permissions::from_mode(0o666))
-            .tempfile_in(dir)
-            .map_err(err)?;
-        let _guard = crate::interrupt::TempGuard::new(file.path());
-        file.write_all(MAGIC).map_err(err)?;
-        file.write_all(&FORMAT_VERSION.to_le_bytes()).map_err(err)?;
-        file.write_all(&body).map_err(err)?;
-        file.as_file().sync_data().map_err(err)?;
-        file.persist(path).map_err(|e| err(e.error))?;
-        Ok(())
+        crate::interrupt::write_atomically(path, false, err, |_, file| {
+            file.write_all(MAGIC).map_err(err)?;
+            file.write_all(&FORMAT_VERSION.to_le_bytes()).map_err(err)?;
+            file.write_all(&body).map_err(err)?;
+            file.sync_data().map_err(err)
+        })
     }
 
     /// Reads a state file, refusing anything but a complete file of this format version.
