@@ -110,14 +110,15 @@ def variance_per_image(imgs):
     return float(per_pixel.mean()), float(per_pixel.std(ddof=1) / np.sqrt(per_pixel.size))
 
 
-def render_plexus(xml_path, spp, seed, depth, sampler, threads, tmp):
-    """One plexus render: the image and its render's (wall, CPU) seconds (its JSON)."""
+def render_plexus(xml_path, spp, seed, depth, sampler, threads, tmp, settings=()):
+    """One plexus render: the image and its render's (wall, CPU) seconds (its JSON). `settings` are
+    further `--set KEY=VALUE` overrides of pt's settings."""
     import mitsuba as mi
     plexus = os.environ.get("PLEXUS", os.path.join(ROOT, "target", "release", "plexus"))
     out = os.path.join(tmp, f"{sampler}-{seed}.exr")
     subprocess.run([plexus, "render", xml_path, "--integrator", "pt", "--spp", str(spp), "--seed", str(seed),
                     "--threads", str(threads), "--set", f"max_depth={depth}",
-                    "--set", f'sampler="{sampler}"', "-o", out],
+                    "--set", f'sampler="{sampler}"', *[a for kv in settings for a in ("--set", kv)], "-o", out],
                    check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     img = np.array(mi.Bitmap(out))[..., :3]
     stats = json.load(open(os.path.join(tmp, f"{sampler}-{seed}.json")))
@@ -161,7 +162,7 @@ def measure_scene(mi, scene, xml, args, seeds):
             m_imgs.append(img)
             m_times.append(t)
             for sampler in SAMPLERS:
-                img, t = render_plexus(xml, args.spp, seed, args.depth, sampler, args.threads, tmp)
+                img, t = render_plexus(xml, args.spp, seed, args.depth, sampler, args.threads, tmp, args.set)
                 p_imgs[sampler].append(img)
                 p_times[sampler].append(t)
     m_t = median_times(m_times)
@@ -241,9 +242,14 @@ def main():
     ap.add_argument("--first-seed", type=int, default=1, help="seeds are first-seed, first-seed + 1, ...")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--variant", default="llvm_ad_rgb")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a further pt setting for plexus (repeatable), e.g. first_bounce_paths=4; "
+                    "the table is then not the defaults' and must not be written over it")
     ap.add_argument("--write", metavar="FILE", help="also write the table into FILE between its markers "
                     "(docs/benchmarks.md, section 'plexus against Mitsuba 3')")
     args = ap.parse_args()
+    if args.set and args.write:
+        sys.exit("peers.py: --write records the defaults' table; leave out --set, or --write")
     cc = load_crosscheck()
     import mitsuba as mi
     import drjit as dr
@@ -271,7 +277,7 @@ def main():
         print("\n".join(table([(name, rows)], args).split("\n")[2:]), file=sys.stderr, flush=True)
     text = table(rows_by_scene, args)
     text += (f"\n\n{started}, `scripts/peers.sh --spp {args.spp} --renders {args.renders} --depth {args.depth} "
-             f"--threads {args.threads} --first-seed {args.first_seed}`; load average {load_before:.1f} before, {load_average():.1f} after; "
+             f"--threads {args.threads} --first-seed {args.first_seed}{''.join(f' --set {kv}' for kv in args.set)}`; load average {load_before:.1f} before, {load_average():.1f} after; "
              f"mitsuba {mi.__version__}; times are medians of {args.renders} renders; '± x%' is the ratio's relative error from the variances' standard errors alone.")
     print(text)
     if args.write:
