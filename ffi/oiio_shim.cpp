@@ -146,11 +146,19 @@ int read_info(const char *path, plx_image_info *info, char *msg, size_t msg_len)
         c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
     }
     info->color_space = cs == "srgb" ? 1 : (cs == "linear" || cs == "scene_linear" || cs == "lin_srgb") ? 2 : 0;
+    bool uint8 = spec.format == OIIO::TypeDesc::UINT8;
+    for (const auto &f : spec.channelformats) {
+        uint8 = uint8 && f == OIIO::TypeDesc::UINT8;
+    }
+    info->is_uint8 = uint8 ? 1 : 0;
     in->close();
     return PLX_OK;
 }
 
-int read_image(const char *path, int width, int height, int channels, float *data, char *msg, size_t msg_len) {
+// The first subimage of `path` in `format` into `data`, after checking that its size is still the
+// one the caller allocated for.
+int read_pixels(const char *path, int width, int height, int channels, OIIO::TypeDesc format, void *data, char *msg,
+                size_t msg_len) {
     if (path == nullptr || data == nullptr || width <= 0 || height <= 0 || channels <= 0) {
         return fail(msg, msg_len, PLX_ERR_ARGUMENT, "null path or buffer, or a non-positive size");
     }
@@ -163,7 +171,7 @@ int read_image(const char *path, int width, int height, int channels, float *dat
         in->close();
         return fail(msg, msg_len, PLX_ERR_ARGUMENT, "the image changed size while being read");
     }
-    if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, data)) {
+    if (!in->read_image(0, 0, 0, channels, format, data)) {
         std::string e = in->geterror();
         in->close();
         return fail(msg, msg_len, PLX_ERR_WRITE, e);
@@ -172,54 +180,66 @@ int read_image(const char *path, int width, int height, int channels, float *dat
     return PLX_OK;
 }
 
+int read_image(const char *path, int width, int height, int channels, float *data, char *msg, size_t msg_len) {
+    return read_pixels(path, width, height, channels, OIIO::TypeDesc::FLOAT, data, msg, msg_len);
+}
+
+int read_image_uint8(const char *path, int width, int height, int channels, unsigned char *data, float *levels,
+                     char *msg, size_t msg_len) {
+    if (levels == nullptr) {
+        return fail(msg, msg_len, PLX_ERR_ARGUMENT, "null levels");
+    }
+    unsigned char codes[256];
+    for (int c = 0; c < 256; ++c) {
+        codes[c] = static_cast<unsigned char>(c);
+    }
+    // The conversion read_image(FLOAT) applies to 8-bit pixels.
+    if (!OIIO::convert_pixel_values(OIIO::TypeDesc::UINT8, codes, OIIO::TypeDesc::FLOAT, levels, 256)) {
+        return fail(msg, msg_len, PLX_ERR_ARGUMENT, "cannot convert 8-bit levels to float");
+    }
+    return read_pixels(path, width, height, channels, OIIO::TypeDesc::UINT8, data, msg, msg_len);
+}
+
+// Runs `body` (one of the functions above), turning any C++ exception into PLX_ERR_EXCEPTION
+// with its message: no exception crosses into Rust.
+template <typename Body>
+int guarded(char *msg, size_t msg_len, Body &&body) noexcept {
+    try {
+        return body();
+    } catch (const std::exception &e) {
+        set_message_raw(msg, msg_len, "C++ exception: ", e.what());
+        return PLX_ERR_EXCEPTION;
+    } catch (...) {
+        set_message_raw(msg, msg_len, "unknown C++ exception", nullptr);
+        return PLX_ERR_EXCEPTION;
+    }
+}
+
 }  // namespace
 
 extern "C" int plx_oiio_write_image(const char *path, int width, int height, int channels, int data_type,
                                     const void *data, int pixel_type, char *msg, size_t msg_len) noexcept {
-    try {
+    return guarded(msg, msg_len, [&] {
         return write_image(path, width, height, channels, data_type, data, pixel_type, msg, msg_len);
-    } catch (const std::exception &e) {
-        set_message_raw(msg, msg_len, "C++ exception: ", e.what());
-        return PLX_ERR_EXCEPTION;
-    } catch (...) {
-        set_message_raw(msg, msg_len, "unknown C++ exception", nullptr);
-        return PLX_ERR_EXCEPTION;
-    }
+    });
 }
 
 extern "C" int plx_oiio_can_write(const char *filename, char *msg, size_t msg_len) noexcept {
-    try {
-        return can_write(filename, msg, msg_len);
-    } catch (const std::exception &e) {
-        set_message_raw(msg, msg_len, "C++ exception: ", e.what());
-        return PLX_ERR_EXCEPTION;
-    } catch (...) {
-        set_message_raw(msg, msg_len, "unknown C++ exception", nullptr);
-        return PLX_ERR_EXCEPTION;
-    }
+    return guarded(msg, msg_len, [&] { return can_write(filename, msg, msg_len); });
 }
 
 extern "C" int plx_oiio_read_info(const char *path, plx_image_info *info, char *msg, size_t msg_len) noexcept {
-    try {
-        return read_info(path, info, msg, msg_len);
-    } catch (const std::exception &e) {
-        set_message_raw(msg, msg_len, "C++ exception: ", e.what());
-        return PLX_ERR_EXCEPTION;
-    } catch (...) {
-        set_message_raw(msg, msg_len, "unknown C++ exception", nullptr);
-        return PLX_ERR_EXCEPTION;
-    }
+    return guarded(msg, msg_len, [&] { return read_info(path, info, msg, msg_len); });
+}
+
+extern "C" int plx_oiio_read_image_uint8(const char *path, int width, int height, int channels, unsigned char *data,
+                                         float *levels, char *msg, size_t msg_len) noexcept {
+    return guarded(msg, msg_len, [&] {
+        return read_image_uint8(path, width, height, channels, data, levels, msg, msg_len);
+    });
 }
 
 extern "C" int plx_oiio_read_image(const char *path, int width, int height, int channels, float *data, char *msg,
                                    size_t msg_len) noexcept {
-    try {
-        return read_image(path, width, height, channels, data, msg, msg_len);
-    } catch (const std::exception &e) {
-        set_message_raw(msg, msg_len, "C++ exception: ", e.what());
-        return PLX_ERR_EXCEPTION;
-    } catch (...) {
-        set_message_raw(msg, msg_len, "unknown C++ exception", nullptr);
-        return PLX_ERR_EXCEPTION;
-    }
+    return guarded(msg, msg_len, [&] { return read_image(path, width, height, channels, data, msg, msg_len); });
 }

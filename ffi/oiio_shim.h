@@ -52,6 +52,9 @@ struct plx_image_info {
     /* 1 if the file says its pixels are sRGB-encoded ("oiio:ColorSpace" sRGB), 2 if it says
      * linear, 0 if it says neither. */
     int color_space;
+    /* 1 if every channel is stored as 8-bit unsigned integers (JPEG, most PNGs): then
+     * plx_oiio_read_image_uint8 reads the codes themselves. */
+    int is_uint8;
 };
 
 /* Opens `path` and reports the size, channel count and encoding of its first subimage.
@@ -65,6 +68,14 @@ int plx_oiio_read_info(const char *path, struct plx_image_info *info, char *msg,
  * PLX_ERR_WRITE (reading the pixels failed). */
 int plx_oiio_read_image(const char *path, int width, int height, int channels, float *data, char *msg,
                         size_t msg_len) PLX_NOEXCEPT;
+
+/* Reads the first subimage of an 8-bit file (`is_uint8`) as its byte codes, laid out as
+ * plx_oiio_read_image lays out floats, into `data` (width*height*channels bytes), and into
+ * `levels` (256 floats) the float OpenImageIO makes of each code: plx_oiio_read_image's value of a
+ * texel is levels[its code], without the float buffer four times the size. Errors as
+ * plx_oiio_read_image's. */
+int plx_oiio_read_image_uint8(const char *path, int width, int height, int channels, unsigned char *data,
+                              float *levels, char *msg, size_t msg_len) PLX_NOEXCEPT;
 
 #ifdef __cplusplus
 }

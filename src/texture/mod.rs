@@ -13,7 +13,7 @@ use std::sync::Arc;
 
 use glam::Vec2;
 
-use crate::film::oiio::ReadImage;
+use crate::film::oiio::{ReadImage, ReadPixels};
 use crate::film::tonemap::srgb_eotf;
 use crate::huge_pages::advise_huge_pages;
 use crate::prefetch::prefetch;
@@ -58,22 +58,40 @@ impl TexelImage {
                 v
             }
         };
-        let pixel = |p: &[f32]| if p.len() >= 3 { [p[0], p[1], p[2]] } else { [p[0]; 3] };
-        let pixels = img.data.chunks_exact(img.channels.max(1));
-        let (width, height) = (img.width, img.height);
-        let count = img.data.len() / img.channels.max(1);
-        if let Some(levels) = eight_bit_levels(&img.data) {
-            let code = |v: f32| (v * 255.0).round() as u8;
-            let mut codes = Vec::with_capacity(count);
-            advise_huge_pages(&codes);
-            codes.extend(pixels.map(|p| pixel(p).map(code)));
-            let decoded = Box::new(levels.map(decode));
-            return TexelImage { width, height, storage: TexelStorage::Coded { codes, decoded } };
+        let (width, height, channels) = (img.width, img.height, img.channels.max(1));
+        // One or two channels are grey; three or more RGB.
+        fn pixel<T: Copy>(p: &[T]) -> [T; 3] {
+            if p.len() >= 3 {
+                [p[0], p[1], p[2]]
+            } else {
+                [p[0]; 3]
+            }
         }
-        let mut texels = Vec::with_capacity(count);
-        advise_huge_pages(&texels);
-        texels.extend(pixels.map(|p| Rgb::from_array(pixel(p).map(decode))));
-        TexelImage { width, height, storage: TexelStorage::Linear(texels) }
+        match &img.data {
+            ReadPixels::Uint8 { codes, levels } => {
+                let mut texel_codes = Vec::with_capacity(codes.len() / channels);
+                advise_huge_pages(&texel_codes);
+                texel_codes.extend(codes.chunks_exact(channels).map(pixel));
+                let decoded = Box::new(levels.map(decode));
+                TexelImage { width, height, storage: TexelStorage::Coded { codes: texel_codes, decoded } }
+            }
+            ReadPixels::Float(data) => {
+                let pixels = data.chunks_exact(channels);
+                let count = data.len() / channels;
+                if let Some(levels) = eight_bit_levels(data) {
+                    let code = |v: f32| (v * 255.0).round() as u8;
+                    let mut codes = Vec::with_capacity(count);
+                    advise_huge_pages(&codes);
+                    codes.extend(pixels.map(|p| pixel(p).map(code)));
+                    let decoded = Box::new(levels.map(decode));
+                    return TexelImage { width, height, storage: TexelStorage::Coded { codes, decoded } };
+                }
+                let mut texels = Vec::with_capacity(count);
+                advise_huge_pages(&texels);
+                texels.extend(pixels.map(|p| Rgb::from_array(pixel(p).map(decode))));
+                TexelImage { width, height, storage: TexelStorage::Linear(texels) }
+            }
+        }
     }
 
     /// Bytes held by the texels.

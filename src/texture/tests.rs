@@ -7,7 +7,7 @@ use std::sync::Arc;
 use glam::Vec2;
 
 use super::*;
-use crate::film::oiio::{read_image, write_image, WriteOptions};
+use crate::film::oiio::{read_image, read_image_as_float, write_image, WriteOptions};
 use crate::film::tonemap::srgb_oetf;
 use crate::film::Image;
 
@@ -218,7 +218,14 @@ fn eight_bit_images_are_held_as_codes_bit_for_bit() {
     // Levels as OpenImageIO converts them (c · (1/255) in f32) for RGB, grey and grey+alpha.
     for channels in [3usize, 4, 1, 2] {
         let data: Vec<f32> = (0..w * h * channels).map(|_| f32::from(rng.gen::<u8>()) * (1.0 / 255.0)).collect();
-        let img = ReadImage { width: w, height: h, channels, data, is_float: false, srgb: None };
+        let img = ReadImage {
+            width: w,
+            height: h,
+            channels,
+            data: ReadPixels::Float(data.clone()),
+            is_float: false,
+            srgb: None,
+        };
         for srgb in [true, false] {
             let coded = TexelImage::from_read(&img, srgb);
             assert!(coded.is_coded(), "{channels} channels");
@@ -226,8 +233,7 @@ fn eight_bit_images_are_held_as_codes_bit_for_bit() {
             let linear = TexelImage::from_texels(
                 w,
                 h,
-                img.data
-                    .chunks_exact(channels)
+                data.chunks_exact(channels)
                     .map(|p| {
                         if channels >= 3 {
                             Rgb::new(decode(p[0]), decode(p[1]), decode(p[2]))
@@ -255,13 +261,59 @@ fn eight_bit_images_are_held_as_codes_bit_for_bit() {
             assert_eq!(coded.mean(), linear.mean());
         }
     }
-    let off_level =
-        ReadImage { width: 2, height: 1, channels: 1, data: vec![0.5 + 1e-3, 0.2], is_float: false, srgb: None };
+    let off_level = ReadImage {
+        width: 2,
+        height: 1,
+        channels: 1,
+        data: ReadPixels::Float(vec![0.5 + 1e-3, 0.2]),
+        is_float: false,
+        srgb: None,
+    };
     assert!(!TexelImage::from_read(&off_level, false).is_coded());
     let level = 100.0f32 / 255.0;
-    let twice =
-        ReadImage { width: 2, height: 1, channels: 1, data: vec![level, level.next_up()], is_float: false, srgb: None };
+    let twice = ReadImage {
+        width: 2,
+        height: 1,
+        channels: 1,
+        data: ReadPixels::Float(vec![level, level.next_up()]),
+        is_float: false,
+        srgb: None,
+    };
     let t = TexelImage::from_read(&twice, false);
     assert!(!t.is_coded());
     assert_eq!((t.texel(0, 0).x, t.texel(1, 0).x), (level, level.next_up()));
+}
+
+/// An 8-bit file (PNG, JPEG) is read as its byte codes (`ReadPixels::Uint8`), and its texels are
+/// those of reading it as floats, bit for bit, sRGB-decoded or not: the table of levels is
+/// OpenImageIO's own conversion. Random colours, so that nearly every code occurs. Levels
+/// computed as c / 255 (a division, not OpenImageIO's product c · (1/255)) fail it.
+#[test]
+fn eight_bit_files_are_read_as_codes_with_the_float_reads_texels() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(20);
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (w, h) = (97, 61);
+    let mut img = Image::new(w, h);
+    for p in img.pixels.iter_mut() {
+        *p = Rgb::new(rng.gen(), rng.gen(), rng.gen());
+    }
+    for name in ["t.png", "t.jpg"] {
+        let path = dir.path().join(name);
+        write_image(&path, &img, &WriteOptions::default()).expect("write");
+        let codes = read_image(&path).expect("read");
+        assert!(matches!(codes.data, ReadPixels::Uint8 { .. }), "{name} is read as codes");
+        let floats = read_image_as_float(&path).expect("read as float");
+        assert!(matches!(floats.data, ReadPixels::Float(_)));
+        for srgb in [true, false] {
+            let (a, b) = (TexelImage::from_read(&codes, srgb), TexelImage::from_read(&floats, srgb));
+            assert!(a.is_coded() && b.is_coded());
+            for j in 0..h {
+                for i in 0..w {
+                    let (x, y) = (a.texel(i, j), b.texel(i, j));
+                    assert_eq!(x.to_array().map(f32::to_bits), y.to_array().map(f32::to_bits), "{name} ({i}, {j})");
+                }
+            }
+        }
+    }
 }
