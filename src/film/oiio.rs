@@ -99,6 +99,9 @@ pub enum ReadPixels {
     /// `levels[codes[k]]`, bit for bit what `Float` would hold, in a quarter of the memory and
     /// without the conversion (the door's three photographs: 30 MB instead of 118 MB).
     Uint8 { codes: Vec<u8>, levels: Box<[f32; 256]> },
+    /// `Uint8` of a three-channel file, a pixel's codes together: read straight into the array a
+    /// texture keeps (`TexelImage`), on huge pages, so that loading touches its memory once.
+    Rgb8 { texels: Vec<[u8; 3]>, levels: Box<[f32; 256]> },
 }
 
 /// Why an image could not be read.
@@ -142,23 +145,33 @@ fn read_image_with(path: &Path, codes_for_8_bit: bool) -> Result<ReadImage, Imag
     let texels = (w as usize).checked_mul(h as usize).filter(|&n| n <= MAX_READ_TEXELS).ok_or_else(bad)?;
     let values = texels * ch as usize;
     let (status, data) = if codes_for_8_bit && info.is_uint8 != 0 {
-        let mut codes = vec![0u8; values];
         let mut levels = Box::new([0.0f32; 256]);
-        // SAFETY: `codes` holds width·height·channels bytes, the size the shim checks against the
-        // file; `levels` 256 floats.
-        let status = unsafe {
-            plx_oiio_read_image_uint8(
-                c.as_ptr(),
-                info.width,
-                info.height,
-                info.channels,
-                codes.as_mut_ptr(),
-                levels.as_mut_ptr(),
-                msg.as_mut_ptr().cast(),
-                msg.len(),
-            )
+        let read_codes = |codes: *mut u8, levels: &mut [f32; 256], msg: &mut [u8]| {
+            // SAFETY: `codes` points to width·height·channels bytes (its callers below), the size
+            // the shim checks against the file; `levels` holds 256 floats, `msg` its length.
+            unsafe {
+                plx_oiio_read_image_uint8(
+                    c.as_ptr(),
+                    info.width,
+                    info.height,
+                    info.channels,
+                    codes,
+                    levels.as_mut_ptr(),
+                    msg.as_mut_ptr().cast(),
+                    msg.len(),
+                )
+            }
         };
-        (status, ReadPixels::Uint8 { codes, levels })
+        if info.channels == 3 {
+            let mut texels = vec![[0u8; 3]; texels];
+            crate::huge_pages::advise_huge_pages(&texels);
+            let status = read_codes(texels.as_mut_ptr().cast(), &mut levels, &mut msg);
+            (status, ReadPixels::Rgb8 { texels, levels })
+        } else {
+            let mut codes = vec![0u8; values];
+            let status = read_codes(codes.as_mut_ptr(), &mut levels, &mut msg);
+            (status, ReadPixels::Uint8 { codes, levels })
+        }
     } else {
         let mut data = vec![0.0f32; values];
         // SAFETY: `data` holds width·height·channels floats, the size the shim checks against the file.

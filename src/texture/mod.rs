@@ -49,7 +49,7 @@ impl TexelImage {
     /// more are RGB (a fourth, alpha, is ignored: opacity is its own parameter). `srgb` decodes
     /// the sRGB transfer function. Texels are clamped to [0, 1] (NaN to 0): every colour parameter
     /// is a reflectance or an opacity.
-    pub fn from_read(img: &ReadImage, srgb: bool) -> TexelImage {
+    pub fn from_read(img: ReadImage, srgb: bool) -> TexelImage {
         let decode = |v: f32| {
             let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
             if srgb {
@@ -67,7 +67,11 @@ impl TexelImage {
                 [p[0]; 3]
             }
         }
-        match &img.data {
+        match img.data {
+            ReadPixels::Rgb8 { texels, levels } => {
+                let decoded = Box::new(levels.map(decode));
+                TexelImage { width, height, storage: TexelStorage::Coded { codes: texels, decoded } }
+            }
             ReadPixels::Uint8 { codes, levels } => {
                 let mut texel_codes = Vec::with_capacity(codes.len() / channels);
                 advise_huge_pages(&texel_codes);
@@ -78,7 +82,7 @@ impl TexelImage {
             ReadPixels::Float(data) => {
                 let pixels = data.chunks_exact(channels);
                 let count = data.len() / channels;
-                if let Some(levels) = eight_bit_levels(data) {
+                if let Some(levels) = eight_bit_levels(&data) {
                     let code = |v: f32| (v * 255.0).round() as u8;
                     let mut codes = Vec::with_capacity(count);
                     advise_huge_pages(&codes);

@@ -87,8 +87,8 @@ fn images_read_through_oiio_with_their_encoding() {
     write_image(&png, &img, &WriteOptions::default()).expect("png");
     let read = read_image(&png).expect("read png");
     assert!(!read.is_float);
-    let decoded = TexelImage::from_read(&read, read.srgb.unwrap_or(true));
-    let raw = TexelImage::from_read(&read, false);
+    let decoded = TexelImage::from_read(read.clone(), read.srgb.unwrap_or(true));
+    let raw = TexelImage::from_read(read.clone(), false);
     for (k, p) in img.pixels.iter().enumerate() {
         for c in 0..3 {
             let v = p[c];
@@ -107,7 +107,7 @@ fn images_read_through_oiio_with_their_encoding() {
     write_image(&exr, &img, &WriteOptions::default()).expect("exr");
     let read = read_image(&exr).expect("read exr");
     assert!(read.is_float && read.srgb != Some(true));
-    let linear = TexelImage::from_read(&read, false);
+    let linear = TexelImage::from_read(read.clone(), false);
     let texels: Vec<Rgb> = (0..6).map(|k| linear.texel(k % 3, k / 3)).collect();
     assert_eq!(texels, img.pixels);
     assert!(!linear.is_coded(), "a float image is held as f32");
@@ -134,9 +134,13 @@ fn png_colours_are_read_unassociated_from_alpha() {
     std::fs::write(&png, RGBA_PNG).expect("write png");
     let read = read_image(&png).expect("read png");
     assert_eq!((read.width, read.height, read.channels), (2, 1, 4));
-    let texels = TexelImage::from_read(&read, read.srgb.unwrap_or(true));
+    let texels = TexelImage::from_read(read.clone(), read.srgb.unwrap_or(true));
     assert_eq!(texels.texel(0, 0), Rgb::ONE, "alpha 0 must not blacken the colour");
     assert_eq!(texels.texel(1, 0), Rgb::new(1.0, 0.0, 0.0), "alpha 0.5 must not halve the colour");
+    // Four channels go through the general 8-bit path, with the float read's texels.
+    assert!(matches!(read.data, ReadPixels::Uint8 { .. }));
+    let floats = TexelImage::from_read(read_image_as_float(&png).expect("read as float"), true);
+    assert_eq!((floats.texel(0, 0), floats.texel(1, 0)), (texels.texel(0, 0), texels.texel(1, 0)));
 }
 
 /// The lookup as it was written first (f64 `rem_euclid`, `floor`, each texel index wrapped by an
@@ -227,7 +231,7 @@ fn eight_bit_images_are_held_as_codes_bit_for_bit() {
             srgb: None,
         };
         for srgb in [true, false] {
-            let coded = TexelImage::from_read(&img, srgb);
+            let coded = TexelImage::from_read(img.clone(), srgb);
             assert!(coded.is_coded(), "{channels} channels");
             let decode = |v: f32| if srgb { srgb_eotf(v) } else { v };
             let linear = TexelImage::from_texels(
@@ -269,7 +273,7 @@ fn eight_bit_images_are_held_as_codes_bit_for_bit() {
         is_float: false,
         srgb: None,
     };
-    assert!(!TexelImage::from_read(&off_level, false).is_coded());
+    assert!(!TexelImage::from_read(off_level, false).is_coded());
     let level = 100.0f32 / 255.0;
     let twice = ReadImage {
         width: 2,
@@ -279,7 +283,7 @@ fn eight_bit_images_are_held_as_codes_bit_for_bit() {
         is_float: false,
         srgb: None,
     };
-    let t = TexelImage::from_read(&twice, false);
+    let t = TexelImage::from_read(twice, false);
     assert!(!t.is_coded());
     assert_eq!((t.texel(0, 0).x, t.texel(1, 0).x), (level, level.next_up()));
 }
@@ -302,11 +306,11 @@ fn eight_bit_files_are_read_as_codes_with_the_float_reads_texels() {
         let path = dir.path().join(name);
         write_image(&path, &img, &WriteOptions::default()).expect("write");
         let codes = read_image(&path).expect("read");
-        assert!(matches!(codes.data, ReadPixels::Uint8 { .. }), "{name} is read as codes");
+        assert!(matches!(codes.data, ReadPixels::Rgb8 { .. }), "{name} is read as codes");
         let floats = read_image_as_float(&path).expect("read as float");
         assert!(matches!(floats.data, ReadPixels::Float(_)));
         for srgb in [true, false] {
-            let (a, b) = (TexelImage::from_read(&codes, srgb), TexelImage::from_read(&floats, srgb));
+            let (a, b) = (TexelImage::from_read(codes.clone(), srgb), TexelImage::from_read(floats.clone(), srgb));
             assert!(a.is_coded() && b.is_coded());
             for j in 0..h {
                 for i in 0..w {

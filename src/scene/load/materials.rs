@@ -177,7 +177,7 @@ impl Builder<'_> {
                 // sRGB-encoded and float data linear.
                 let srgb = t.srgb.or(read.srgb).unwrap_or(!read.is_float);
                 let image =
-                    cache.entry((path, srgb)).or_insert_with(|| Arc::new(TexelImage::from_read(&read, srgb))).clone();
+                    cache.entry((path, srgb)).or_insert_with(|| Arc::new(TexelImage::from_read(read, srgb))).clone();
                 Ok(Texture::Bitmap { image, uscale, vscale })
             }
             "checkerboard" => {
