@@ -117,7 +117,7 @@ fn sigint_writes_image_json_and_checkpoint_then_resume_completes() {
 /// catches it now and then; `scripts/stress_second_interrupt.py 600 OLD NEW` repeats the protocol:
 /// 15 of 1,200 renders failed on the old handler, 0 of 1,200 on the new (two runs, session 20).
 #[test]
-fn a_second_interrupt_exits_at_once_and_leaves_no_temporary_file() {
+fn a_second_interrupt_exits_and_leaves_only_complete_outputs() {
     let tmp = temp_dir("sigint2");
     let dir = tmp.path();
     let scene = write(dir, "s.toml", &tiny_scene("[256, 192]", ""));
