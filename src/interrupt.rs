@@ -92,17 +92,12 @@ pub struct FileWriting(());
 
 impl FileWriting {
     /// Starts writing a file. After a second signal no new file is started: the thread waits here
-    /// for the exit that the files still being written will make.
+    /// for the exit that the files still being written will make. Sections do not nest (no writer
+    /// starts a file while writing one); a nested one would wait for itself, until a third signal.
     pub fn enter() -> FileWriting {
         FILES_BEING_WRITTEN.fetch_add(1, Ordering::SeqCst);
-        let outer = SECTIONS_ON_THIS_THREAD.with(|n| n.replace(n.get() + 1));
         let section = FileWriting(());
         if QUIT.load(Ordering::SeqCst) {
-            if outer > 0 {
-                // Inside another file's section: waiting would wait for ourselves. That file is
-                // incomplete, and registered, so quitting now removes it.
-                quit_now();
-            }
             drop(section);
             // Another file is still being written and exits when it ends.
             loop {
@@ -113,14 +108,8 @@ impl FileWriting {
     }
 }
 
-thread_local! {
-    /// [`FileWriting`] sections this thread is inside (nested if a writer starts another file).
-    static SECTIONS_ON_THIS_THREAD: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
-}
-
 impl Drop for FileWriting {
     fn drop(&mut self) {
-        SECTIONS_ON_THIS_THREAD.with(|n| n.set(n.get() - 1));
         if FILES_BEING_WRITTEN.fetch_sub(1, Ordering::SeqCst) == 1 && QUIT.load(Ordering::SeqCst) {
             quit_now();
         }
@@ -142,10 +131,7 @@ pub fn write_atomically<E>(
     use std::os::unix::fs::PermissionsExt;
     // Declared first, so dropped last: after the rename, or the temporary file's removal.
     let _writing = FileWriting::enter();
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
+    let dir = directory_of(path);
     let name = |p: Option<&std::ffi::OsStr>| p.map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let (prefix, suffix) = match (keep_extension, path.extension()) {
         (true, Some(ext)) => (format!(".{}.plexus-tmp-", name(path.file_stem())), format!(".{}", name(Some(ext)))),
@@ -163,6 +149,14 @@ pub fn write_atomically<E>(
     write(&temp, file.as_file_mut())?;
     file.persist(path).map_err(|e| io_error(e.error))?;
     Ok(())
+}
+
+/// The directory a file `path` is created in: its parent, or "." for a bare name.
+pub fn directory_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    }
 }
 
 /// Unlinks every registered temporary file `which` selects (on quitting: all of them) before

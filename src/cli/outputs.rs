@@ -36,10 +36,7 @@ fn check_stats_path(path: &Path) -> anyhow::Result<()> {
 /// directory and name checks as images, before any work.
 pub fn check_state_paths(paths: &[PathBuf]) -> anyhow::Result<()> {
     for path in paths {
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
+        let dir = plexus::interrupt::directory_of(path);
         if path.is_dir() || path.as_os_str().to_string_lossy().ends_with('/') {
             return Err(bad_input(format!("cannot write the state file '{}': it is a directory", path.display())));
         }

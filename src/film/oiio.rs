@@ -293,14 +293,6 @@ fn message(buf: &[u8]) -> String {
     String::from_utf8_lossy(&buf[..end]).trim().to_string()
 }
 
-/// The directory `path` will be written into (`.` for a bare file name).
-fn target_dir(path: &Path) -> &Path {
-    match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir,
-        _ => Path::new("."),
-    }
-}
-
 /// The largest width or height a format's writer accepts, where it is below what `c_int` (the
 /// shim's type) holds. OpenImageIO has no query for this, so the limits are those of the
 /// libraries it writes through:
@@ -347,7 +339,7 @@ pub fn check_output_path(path: &Path) -> Result<(), ImageWriteError> {
     if path.as_os_str().to_string_lossy().ends_with('/') {
         return Err(ImageWriteError::TrailingSlash { path: path.to_path_buf() });
     }
-    let dir = target_dir(path);
+    let dir = crate::interrupt::directory_of(path);
     if !dir.exists() {
         return Err(ImageWriteError::MissingDirectory { path: path.to_path_buf(), dir: dir.to_path_buf() });
     }
