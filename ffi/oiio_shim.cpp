@@ -155,11 +155,12 @@ int read_info(const char *path, plx_image_info *info, char *msg, size_t msg_len)
     return PLX_OK;
 }
 
-// The first subimage of `path` in `format` into `data`, after checking that its size is still the
-// one the caller allocated for.
-int read_pixels(const char *path, int width, int height, int channels, OIIO::TypeDesc format, void *data, char *msg,
-                size_t msg_len) {
-    if (path == nullptr || data == nullptr || width <= 0 || height <= 0 || channels <= 0) {
+// Channels [0, read_channels) of the first subimage of `path` in `format` into `data`, after
+// checking that its size is still the one the caller allocated for.
+int read_pixels(const char *path, int width, int height, int channels, int read_channels, OIIO::TypeDesc format,
+                void *data, char *msg, size_t msg_len) {
+    if (path == nullptr || data == nullptr || width <= 0 || height <= 0 || channels <= 0 || read_channels <= 0 ||
+        read_channels > channels) {
         return fail(msg, msg_len, PLX_ERR_ARGUMENT, "null path or buffer, or a non-positive size");
     }
     auto in = open_unassociated(path);
@@ -171,7 +172,7 @@ int read_pixels(const char *path, int width, int height, int channels, OIIO::Typ
         in->close();
         return fail(msg, msg_len, PLX_ERR_ARGUMENT, "the image changed size while being read");
     }
-    if (!in->read_image(0, 0, 0, channels, format, data)) {
+    if (!in->read_image(0, 0, 0, read_channels, format, data)) {
         std::string e = in->geterror();
         in->close();
         return fail(msg, msg_len, PLX_ERR_WRITE, e);
@@ -181,11 +182,11 @@ int read_pixels(const char *path, int width, int height, int channels, OIIO::Typ
 }
 
 int read_image(const char *path, int width, int height, int channels, float *data, char *msg, size_t msg_len) {
-    return read_pixels(path, width, height, channels, OIIO::TypeDesc::FLOAT, data, msg, msg_len);
+    return read_pixels(path, width, height, channels, channels, OIIO::TypeDesc::FLOAT, data, msg, msg_len);
 }
 
-int read_image_uint8(const char *path, int width, int height, int channels, unsigned char *data, float *levels,
-                     char *msg, size_t msg_len) {
+int read_image_uint8(const char *path, int width, int height, int channels, int read_channels, unsigned char *data,
+                     float *levels, char *msg, size_t msg_len) {
     if (levels == nullptr) {
         return fail(msg, msg_len, PLX_ERR_ARGUMENT, "null levels");
     }
@@ -197,7 +198,7 @@ int read_image_uint8(const char *path, int width, int height, int channels, unsi
     if (!OIIO::convert_pixel_values(OIIO::TypeDesc::UINT8, codes, OIIO::TypeDesc::FLOAT, levels, 256)) {
         return fail(msg, msg_len, PLX_ERR_ARGUMENT, "cannot convert 8-bit levels to float");
     }
-    return read_pixels(path, width, height, channels, OIIO::TypeDesc::UINT8, data, msg, msg_len);
+    return read_pixels(path, width, height, channels, read_channels, OIIO::TypeDesc::UINT8, data, msg, msg_len);
 }
 
 // Runs `body` (one of the functions above), turning any C++ exception into PLX_ERR_EXCEPTION
@@ -232,10 +233,10 @@ extern "C" int plx_oiio_read_info(const char *path, plx_image_info *info, char *
     return guarded(msg, msg_len, [&] { return read_info(path, info, msg, msg_len); });
 }
 
-extern "C" int plx_oiio_read_image_uint8(const char *path, int width, int height, int channels, unsigned char *data,
-                                         float *levels, char *msg, size_t msg_len) noexcept {
+extern "C" int plx_oiio_read_image_uint8(const char *path, int width, int height, int channels, int read_channels,
+                                         unsigned char *data, float *levels, char *msg, size_t msg_len) noexcept {
     return guarded(msg, msg_len, [&] {
-        return read_image_uint8(path, width, height, channels, data, levels, msg, msg_len);
+        return read_image_uint8(path, width, height, channels, read_channels, data, levels, msg, msg_len);
     });
 }
 

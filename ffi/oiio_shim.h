@@ -69,13 +69,13 @@ int plx_oiio_read_info(const char *path, struct plx_image_info *info, char *msg,
 int plx_oiio_read_image(const char *path, int width, int height, int channels, float *data, char *msg,
                         size_t msg_len) PLX_NOEXCEPT;
 
-/* Reads the first subimage of an 8-bit file (`is_uint8`) as its byte codes, laid out as
- * plx_oiio_read_image lays out floats, into `data` (width*height*channels bytes), and into
- * `levels` (256 floats) the float OpenImageIO makes of each code: plx_oiio_read_image's value of a
- * texel is levels[its code], without the float buffer four times the size. Errors as
- * plx_oiio_read_image's. */
-int plx_oiio_read_image_uint8(const char *path, int width, int height, int channels, unsigned char *data,
-                              float *levels, char *msg, size_t msg_len) PLX_NOEXCEPT;
+/* Reads channels [0, read_channels) (1 <= read_channels <= channels) of the first subimage of an
+ * 8-bit file (`is_uint8`) as their byte codes, interleaved, row 0 at the top, into `data`
+ * (width*height*read_channels bytes), and into `levels` (256 floats) the float OpenImageIO makes
+ * of each code: plx_oiio_read_image's value of a channel is levels[its code], without the float
+ * buffer four times the size. Errors as plx_oiio_read_image's. */
+int plx_oiio_read_image_uint8(const char *path, int width, int height, int channels, int read_channels,
+                              unsigned char *data, float *levels, char *msg, size_t msg_len) PLX_NOEXCEPT;
 
 #ifdef __cplusplus
 }

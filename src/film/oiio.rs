@@ -52,6 +52,7 @@ extern "C" {
         width: c_int,
         height: c_int,
         channels: c_int,
+        read_channels: c_int,
         data: *mut u8,
         levels: *mut f32,
         msg: *mut c_char,
@@ -82,7 +83,7 @@ pub struct ReadImage {
     pub width: usize,
     pub height: usize,
     pub channels: usize,
-    /// width·height·channels values, interleaved.
+    /// The values (see [`ReadPixels`]).
     pub data: ReadPixels,
     /// Whether the file stores floating-point pixels.
     pub is_float: bool,
@@ -93,14 +94,15 @@ pub struct ReadImage {
 /// The values of a read image.
 #[derive(Clone, Debug)]
 pub enum ReadPixels {
-    /// Each value as a float.
+    /// width·height·channels values as floats, interleaved.
     Float(Vec<f32>),
-    /// An 8-bit file's byte codes, and the float OpenImageIO makes of each code: value k is
-    /// `levels[codes[k]]`, bit for bit what `Float` would hold, in a quarter of the memory and
-    /// without the conversion (the door's three photographs: 30 MB instead of 118 MB).
-    Uint8 { codes: Vec<u8>, levels: Box<[f32; 256]> },
-    /// `Uint8` of a three-channel file, a pixel's codes together: read straight into the array a
-    /// texture keeps (`TexelImage`), on huge pages, so that loading touches its memory once.
+    /// An 8-bit file's colours as byte codes, one per texel, and the float OpenImageIO makes of
+    /// each code: a texel's colour is `levels` of its codes, bit for bit what `Float` holds there.
+    /// The colour is the file's first three channels, or its first repeated in a file of one or
+    /// two (grey; a second or fourth channel, alpha, is not read): the rule
+    /// `TexelImage::from_read` applies to `Float`. Read straight into the array a texture keeps,
+    /// on huge pages, in a quarter of the floats' memory and without their conversion (the door's
+    /// three photographs: 30 MB instead of 118 MB).
     Rgb8 { texels: Vec<[u8; 3]>, levels: Box<[f32; 256]> },
 }
 
@@ -143,18 +145,18 @@ fn read_image_with(path: &Path, codes_for_8_bit: bool) -> Result<ReadImage, Imag
         return Err(bad());
     }
     let texels = (w as usize).checked_mul(h as usize).filter(|&n| n <= MAX_READ_TEXELS).ok_or_else(bad)?;
-    let values = texels * ch as usize;
     let (status, data) = if codes_for_8_bit && info.is_uint8 != 0 {
         let mut levels = Box::new([0.0f32; 256]);
-        let read_codes = |codes: *mut u8, levels: &mut [f32; 256], msg: &mut [u8]| {
-            // SAFETY: `codes` points to width·height·channels bytes (its callers below), the size
-            // the shim checks against the file; `levels` holds 256 floats, `msg` its length.
+        let read_codes = |read_channels: c_int, codes: *mut u8, levels: &mut [f32; 256], msg: &mut [u8]| {
+            // SAFETY: `codes` points to width·height·read_channels bytes (its callers below), the
+            // size the shim checks against the file; `levels` holds 256 floats, `msg` its length.
             unsafe {
                 plx_oiio_read_image_uint8(
                     c.as_ptr(),
                     info.width,
                     info.height,
                     info.channels,
+                    read_channels,
                     codes,
                     levels.as_mut_ptr(),
                     msg.as_mut_ptr().cast(),
@@ -162,18 +164,21 @@ fn read_image_with(path: &Path, codes_for_8_bit: bool) -> Result<ReadImage, Imag
                 )
             }
         };
-        if info.channels == 3 {
-            let mut texels = vec![[0u8; 3]; texels];
-            crate::huge_pages::advise_huge_pages(&texels);
-            let status = read_codes(texels.as_mut_ptr().cast(), &mut levels, &mut msg);
-            (status, ReadPixels::Rgb8 { texels, levels })
+        let mut colours = vec![[0u8; 3]; texels];
+        crate::huge_pages::advise_huge_pages(&colours);
+        let status = if info.channels >= 3 {
+            read_codes(3, colours.as_mut_ptr().cast(), &mut levels, &mut msg)
         } else {
-            let mut codes = vec![0u8; values];
-            let status = read_codes(codes.as_mut_ptr(), &mut levels, &mut msg);
-            (status, ReadPixels::Uint8 { codes, levels })
-        }
+            let mut grey = vec![0u8; texels];
+            let status = read_codes(1, grey.as_mut_ptr(), &mut levels, &mut msg);
+            for (colour, &g) in colours.iter_mut().zip(&grey) {
+                *colour = [g; 3];
+            }
+            status
+        };
+        (status, ReadPixels::Rgb8 { texels: colours, levels })
     } else {
-        let mut data = vec![0.0f32; values];
+        let mut data = vec![0.0f32; texels * ch as usize];
         // SAFETY: `data` holds width·height·channels floats, the size the shim checks against the file.
         let status = unsafe {
             plx_oiio_read_image(

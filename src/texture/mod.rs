@@ -71,25 +71,12 @@ impl TexelImage {
             }
         };
         let (width, height, channels) = (img.width, img.height, img.channels.max(1));
-        // One or two channels are grey; three or more RGB.
-        fn pixel<T: Copy>(p: &[T]) -> [T; 3] {
-            if p.len() >= 3 {
-                [p[0], p[1], p[2]]
-            } else {
-                [p[0]; 3]
-            }
-        }
+        // One or two channels are grey; three or more RGB (`ReadPixels::Rgb8` reads the same).
+        let pixel = |p: &[f32]| if p.len() >= 3 { [p[0], p[1], p[2]] } else { [p[0]; 3] };
         match img.data {
             ReadPixels::Rgb8 { texels, levels } => {
                 let decoded = Box::new(levels.map(decode));
                 TexelImage::new(width, height, TexelStorage::Coded { codes: texels, decoded })
-            }
-            ReadPixels::Uint8 { codes, levels } => {
-                let mut texel_codes = Vec::with_capacity(codes.len() / channels);
-                advise_huge_pages(&texel_codes);
-                texel_codes.extend(codes.chunks_exact(channels).map(pixel));
-                let decoded = Box::new(levels.map(decode));
-                TexelImage::new(width, height, TexelStorage::Coded { codes: texel_codes, decoded })
             }
             ReadPixels::Float(data) => {
                 let pixels = data.chunks_exact(channels);

@@ -137,8 +137,8 @@ fn png_colours_are_read_unassociated_from_alpha() {
     let texels = TexelImage::from_read(read.clone(), read.srgb.unwrap_or(true));
     assert_eq!(texels.texel(0, 0), Rgb::ONE, "alpha 0 must not blacken the colour");
     assert_eq!(texels.texel(1, 0), Rgb::new(1.0, 0.0, 0.0), "alpha 0.5 must not halve the colour");
-    // Four channels go through the general 8-bit path, with the float read's texels.
-    assert!(matches!(read.data, ReadPixels::Uint8 { .. }));
+    // Four channels are read as codes too, alpha left out, with the float read's texels.
+    assert!(matches!(read.data, ReadPixels::Rgb8 { .. }));
     let floats = TexelImage::from_read(read_image_as_float(&png).expect("read as float"), true);
     assert_eq!((floats.texel(0, 0), floats.texel(1, 0)), (texels.texel(0, 0), texels.texel(1, 0)));
 }
@@ -288,10 +288,12 @@ fn eight_bit_images_are_held_as_codes_bit_for_bit() {
     assert_eq!((t.texel(0, 0).x, t.texel(1, 0).x), (level, level.next_up()));
 }
 
-/// An 8-bit file (PNG, JPEG) is read as its byte codes (`ReadPixels::Uint8`), and its texels are
-/// those of reading it as floats, bit for bit, sRGB-decoded or not: the table of levels is
-/// OpenImageIO's own conversion. Random colours, so that nearly every code occurs. Levels
-/// computed as c / 255 (a division, not OpenImageIO's product c · (1/255)) fail it.
+/// An 8-bit file (PNG, JPEG; RGB, grey, grey and alpha) is read as its byte codes
+/// (`ReadPixels::Rgb8`), and its texels are those of reading it as floats, bit for bit,
+/// sRGB-decoded or not: the table of levels is OpenImageIO's own conversion, and a grey file's
+/// colour its first channel. Random colours, so that nearly every code occurs. Levels computed as
+/// c / 255 (a division, not OpenImageIO's product c · (1/255)) fail it; so does a grey and alpha
+/// file read from its second channel (alpha 255, 0, 128 under grey 0, 100, 255).
 #[test]
 fn eight_bit_files_are_read_as_codes_with_the_float_reads_texels() {
     use rand::{Rng, SeedableRng};
@@ -302,9 +304,26 @@ fn eight_bit_files_are_read_as_codes_with_the_float_reads_texels() {
     for p in img.pixels.iter_mut() {
         *p = Rgb::new(rng.gen(), rng.gen(), rng.gen());
     }
-    for name in ["t.png", "t.jpg"] {
+    // 3×1 PNGs of 8-bit grey (0, 100, 255) and grey with alpha ((0, 255), (100, 0), (255, 128)).
+    const GREY_PNG: [u8; 69] = [
+        0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52, 0x00, 0x00,
+        0x00, 0x03, 0x00, 0x00, 0x00, 0x01, 0x08, 0x00, 0x00, 0x00, 0x00, 0x3e, 0x8b, 0x4b, 0x68, 0x00, 0x00, 0x00,
+        0x0c, 0x49, 0x44, 0x41, 0x54, 0x78, 0xda, 0x63, 0x60, 0x48, 0xf9, 0x0f, 0x00, 0x01, 0xcb, 0x01, 0x64, 0x6f,
+        0xf3, 0x01, 0xae, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82,
+    ];
+    const GREY_ALPHA_PNG: [u8; 72] = [
+        0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52, 0x00, 0x00,
+        0x00, 0x03, 0x00, 0x00, 0x00, 0x01, 0x08, 0x04, 0x00, 0x00, 0x00, 0xb1, 0xe9, 0xdc, 0x3f, 0x00, 0x00, 0x00,
+        0x0f, 0x49, 0x44, 0x41, 0x54, 0x78, 0xda, 0x63, 0x60, 0xf8, 0x9f, 0xc2, 0xf0, 0xbf, 0x01, 0x00, 0x09, 0x10,
+        0x02, 0xe3, 0x07, 0x9f, 0xbc, 0x60, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82,
+    ];
+    std::fs::write(dir.path().join("grey.png"), GREY_PNG).expect("write");
+    std::fs::write(dir.path().join("grey-alpha.png"), GREY_ALPHA_PNG).expect("write");
+    for name in ["t.png", "t.jpg", "grey.png", "grey-alpha.png"] {
         let path = dir.path().join(name);
-        write_image(&path, &img, &WriteOptions::default()).expect("write");
+        if name.starts_with('t') {
+            write_image(&path, &img, &WriteOptions::default()).expect("write");
+        }
         let codes = read_image(&path).expect("read");
         assert!(matches!(codes.data, ReadPixels::Rgb8 { .. }), "{name} is read as codes");
         let floats = read_image_as_float(&path).expect("read as float");
@@ -312,8 +331,8 @@ fn eight_bit_files_are_read_as_codes_with_the_float_reads_texels() {
         for srgb in [true, false] {
             let (a, b) = (TexelImage::from_read(codes.clone(), srgb), TexelImage::from_read(floats.clone(), srgb));
             assert!(a.is_coded() && b.is_coded());
-            for j in 0..h {
-                for i in 0..w {
+            for j in 0..codes.height {
+                for i in 0..codes.width {
                     let (x, y) = (a.texel(i, j), b.texel(i, j));
                     assert_eq!(x.to_array().map(f32::to_bits), y.to_array().map(f32::to_bits), "{name} ({i}, {j})");
                 }
