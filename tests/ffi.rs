@@ -84,6 +84,38 @@ fn float_exr_round_trips_bit_for_bit() {
         img.pixels.iter().map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>()
     );
     assert_eq!(entries(&dir), ["image.exr"]);
+    // And OpenImageIO, which reads EXR textures, reads the file the `exr` crate wrote as it is.
+    let oiio = plexus::film::oiio::read_image(&path).unwrap();
+    let plexus::film::oiio::ReadPixels::Float(values) = oiio.data else { panic!("an EXR is read as floats") };
+    assert_eq!((oiio.width, oiio.height, oiio.channels), (img.width, img.height, 3));
+    assert_eq!(
+        values.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        img.pixels.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>()
+    );
+}
+
+/// An EXR output, and the check of its path before a render, must not load OpenImageIO (0.22 s
+/// and 130 MB per process, src/film/oiio_library.rs); a PNG output does. The dynamic loader's
+/// own log (`LD_DEBUG=libs`, on stderr) tells which libraries a `plexus render` initialised: the
+/// PNG render shows the check can fail.
+#[test]
+fn only_outputs_that_need_it_load_openimageio() {
+    let tmp = scratch_dir("lazy-oiio");
+    let loads_oiio = |out: &str| {
+        let output = std::process::Command::new(env!("CARGO_BIN_EXE_plexus"))
+            .args(["render", "--spp", "1", "--threads", "1", "--out"])
+            .arg(tmp.path().join(out))
+            .env("LD_DEBUG", "libs")
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{out}: {}", String::from_utf8_lossy(&output.stderr));
+        assert!(tmp.path().join(out).is_file(), "{out} was not written");
+        let log = String::from_utf8_lossy(&output.stderr);
+        assert!(log.contains("libembree3"), "{out}: no loader log on stderr:\n{log}");
+        log.contains("libOpenImageIO")
+    };
+    assert!(!loads_oiio("image.exr"), "an EXR render loaded OpenImageIO");
+    assert!(loads_oiio("image.png"), "a PNG render did not load OpenImageIO");
 }
 
 #[test]

@@ -1,5 +1,5 @@
-//! Reading OpenEXR images with the `exr` crate (reference images for `compare`, image environment
-//! maps). The first valid layer is read at its largest resolution; its R, G, B channels become the
+//! OpenEXR through the `exr` crate: every EXR plexus writes ([`write_exr`]: renders, previews,
+//! states), and reading (reference images for `compare`, image environment maps). The first valid layer is read at its largest resolution; its R, G, B channels become the
 //! image (A is ignored), or a single Y channel is broadcast to grey. Any sample type (half, float,
 //! uint) is converted to f32.
 
@@ -109,6 +109,36 @@ pub fn read_exr(path: &Path) -> Result<Image, ExrReadError> {
         _ => unreachable!("one or three channels were selected above"),
     };
     Ok(Image { width, height, pixels })
+}
+
+/// Writes `image` as one layer of R, G and B channels, 32-bit float or (`half`) 16-bit half
+/// (rounded to nearest even), ZIP-compressed in blocks of 16 scan lines, row 0 at the top: what
+/// OpenImageIO's EXR writer, which plexus used before, writes by default. The caller gives the
+/// file (a temporary one, see `interrupt::write_atomically`).
+pub fn write_exr(file: &mut std::fs::File, image: &Image, half: bool) -> Result<(), exr::error::Error> {
+    use exr::prelude::{f16, Encoding, Layer, LayerAttributes, SpecificChannels, Text, Vec2, WritableImage};
+    let attributes = LayerAttributes { software_name: Some(Text::from("plexus")), ..LayerAttributes::default() };
+    let encoding = Encoding {
+        compression: exr::compression::Compression::ZIP16,
+        blocks: exr::prelude::Blocks::ScanLines,
+        line_order: exr::prelude::LineOrder::Increasing,
+    };
+    let size = (image.width, image.height);
+    let pixel = |p: Vec2<usize>| image.pixels[p.y() * image.width + p.x()];
+    let writer = std::io::BufWriter::new(file);
+    if half {
+        let channels = SpecificChannels::rgb(|p| {
+            let c = pixel(p);
+            (f16::from_f32(c.x), f16::from_f32(c.y), f16::from_f32(c.z))
+        });
+        exr::prelude::Image::from_layer(Layer::new(size, attributes, encoding, channels)).write().to_buffered(writer)
+    } else {
+        let channels = SpecificChannels::rgb(|p| {
+            let c = pixel(p);
+            (c.x, c.y, c.z)
+        });
+        exr::prelude::Image::from_layer(Layer::new(size, attributes, encoding, channels)).write().to_buffered(writer)
+    }
 }
 
 #[cfg(test)]

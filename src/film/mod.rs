@@ -5,6 +5,7 @@
 
 pub mod exr_io;
 pub mod oiio;
+pub mod oiio_library;
 pub mod tonemap;
 
 use glam::Vec2;

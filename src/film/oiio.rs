@@ -1,5 +1,6 @@
-//! Writing (and, for textures, reading) images through OpenImageIO (the C shim in
-//! ffi/oiio_shim.cpp).
+//! Writing images, and reading them for textures: EXR is written by the `exr` crate
+//! ([`super::exr_io`]), every other format through OpenImageIO (the C shim in ffi/oiio_shim.cpp,
+//! loaded on first use by [`super::oiio_library`]), which also reads every bitmap.
 //!
 //! The format follows the file extension. Floating-point formats (`.exr`, `.hdr`, `.tif`/`.tiff`,
 //! `.pfm`) receive the linear image unchanged: `.exr` as 32-bit float, or half with
@@ -16,61 +17,9 @@ use thiserror::Error;
 
 use super::{tonemap, Image};
 
-// Declarations matching ffi/oiio_shim.h (kept by hand: two functions and a few constants).
-const PLX_DATA_FLOAT: c_int = 0;
-const PLX_DATA_UINT8: c_int = 1;
-const PLX_PIXEL_FLOAT: c_int = 0;
-const PLX_PIXEL_HALF: c_int = 1;
-const PLX_PIXEL_UINT8: c_int = 2;
-const PLX_OK: c_int = 0;
-
-extern "C" {
-    fn plx_oiio_write_image(
-        path: *const c_char,
-        width: c_int,
-        height: c_int,
-        channels: c_int,
-        data_type: c_int,
-        data: *const c_void,
-        pixel_type: c_int,
-        msg: *mut c_char,
-        msg_len: usize,
-    ) -> c_int;
-    fn plx_oiio_can_write(filename: *const c_char, msg: *mut c_char, msg_len: usize) -> c_int;
-    fn plx_oiio_read_info(path: *const c_char, info: *mut PlxImageInfo, msg: *mut c_char, msg_len: usize) -> c_int;
-    fn plx_oiio_read_image(
-        path: *const c_char,
-        width: c_int,
-        height: c_int,
-        channels: c_int,
-        data: *mut f32,
-        msg: *mut c_char,
-        msg_len: usize,
-    ) -> c_int;
-    fn plx_oiio_read_image_uint8(
-        path: *const c_char,
-        width: c_int,
-        height: c_int,
-        channels: c_int,
-        read_channels: c_int,
-        data: *mut u8,
-        levels: *mut f32,
-        msg: *mut c_char,
-        msg_len: usize,
-    ) -> c_int;
-}
-
-/// `struct plx_image_info` of ffi/oiio_shim.h.
-#[repr(C)]
-#[derive(Default)]
-struct PlxImageInfo {
-    width: c_int,
-    height: c_int,
-    channels: c_int,
-    is_float: c_int,
-    color_space: c_int,
-    is_uint8: c_int,
-}
+use super::oiio_library::{
+    shim, PlxImageInfo, PLX_DATA_FLOAT, PLX_DATA_UINT8, PLX_OK, PLX_PIXEL_FLOAT, PLX_PIXEL_HALF, PLX_PIXEL_UINT8,
+};
 
 /// Most texels a texture may have (2^28: 3 GiB of RGB floats), so a corrupt or hostile header
 /// cannot ask for an absurd allocation.
@@ -113,6 +62,8 @@ pub enum ImageReadError {
     InvalidPath { path: PathBuf },
     #[error("cannot read image '{path}': OpenImageIO: {message}")]
     Oiio { path: PathBuf, message: String },
+    #[error("cannot read image '{path}': {message}")]
+    OiioUnavailable { path: PathBuf, message: String },
     #[error("cannot read image '{path}': it is {width}x{height} with {channels} channels; expected a non-empty image of at most 2^28 texels")]
     BadSize { path: PathBuf, width: i64, height: i64, channels: i64 },
 }
@@ -132,10 +83,11 @@ pub fn read_image_as_float(path: &Path) -> Result<ReadImage, ImageReadError> {
 /// Reads `path`; an 8-bit file as its codes when `codes_for_8_bit`, else as floats.
 fn read_image_with(path: &Path, codes_for_8_bit: bool) -> Result<ReadImage, ImageReadError> {
     let c = c_path(path).map_err(|_| ImageReadError::InvalidPath { path: path.to_path_buf() })?;
+    let shim = shim().map_err(|message| ImageReadError::OiioUnavailable { path: path.to_path_buf(), message })?;
     let mut msg = [0u8; 1024];
     let mut info = PlxImageInfo::default();
     // SAFETY: `c` is NUL-terminated, `info` and `msg` are valid for writes of their sizes.
-    let status = unsafe { plx_oiio_read_info(c.as_ptr(), &mut info, msg.as_mut_ptr().cast(), msg.len()) };
+    let status = unsafe { (shim.read_info)(c.as_ptr(), &mut info, msg.as_mut_ptr().cast(), msg.len()) };
     if status != PLX_OK {
         return Err(ImageReadError::Oiio { path: path.to_path_buf(), message: message(&msg) });
     }
@@ -151,7 +103,7 @@ fn read_image_with(path: &Path, codes_for_8_bit: bool) -> Result<ReadImage, Imag
             // SAFETY: `codes` points to width·height·read_channels bytes (its callers below), the
             // size the shim checks against the file; `levels` holds 256 floats, `msg` its length.
             unsafe {
-                plx_oiio_read_image_uint8(
+                (shim.read_image_uint8)(
                     c.as_ptr(),
                     info.width,
                     info.height,
@@ -181,7 +133,7 @@ fn read_image_with(path: &Path, codes_for_8_bit: bool) -> Result<ReadImage, Imag
         let mut data = vec![0.0f32; texels * ch as usize];
         // SAFETY: `data` holds width·height·channels floats, the size the shim checks against the file.
         let status = unsafe {
-            plx_oiio_read_image(
+            (shim.read_image)(
                 c.as_ptr(),
                 info.width,
                 info.height,
@@ -235,6 +187,10 @@ pub enum ImageWriteError {
     BadImage { path: PathBuf, width: usize, height: usize, pixels: usize },
     #[error("cannot write '{path}': OpenImageIO: {message}")]
     Oiio { path: PathBuf, message: String },
+    #[error("cannot write '{path}': {message} (EXR files are written without it)")]
+    OiioUnavailable { path: PathBuf, message: String },
+    #[error("cannot write '{path}': {message}")]
+    Exr { path: PathBuf, message: String },
     #[error("cannot write '{path}': {source}")]
     Io { path: PathBuf, source: std::io::Error },
 }
@@ -357,16 +313,20 @@ pub fn check_output_path(path: &Path) -> Result<(), ImageWriteError> {
     let Some(ext) = extension(path) else {
         return Err(ImageWriteError::NoExtension { path: path.to_path_buf() });
     };
-    // Only the extension matters to OpenImageIO's lookup; passing a synthetic name keeps odd
-    // characters elsewhere in the path out of the question.
-    let probe =
-        CString::new(format!("probe.{ext}")).map_err(|_| ImageWriteError::InvalidPath { path: path.to_path_buf() })?;
-    let mut buf = [0u8; 512];
-    // SAFETY: `probe` is NUL-terminated; `buf` is writable for `buf.len()` bytes; the shim never
-    // throws across the boundary.
-    let status = unsafe { plx_oiio_can_write(probe.as_ptr(), buf.as_mut_ptr() as *mut c_char, buf.len()) };
-    if status != PLX_OK {
-        return Err(ImageWriteError::UnsupportedFormat { path: path.to_path_buf(), extension: ext });
+    // EXR is written by the `exr` crate; every other format needs OpenImageIO to have a writer for
+    // it. Only the extension matters to that lookup; passing a synthetic name keeps odd characters
+    // elsewhere in the path out of the question.
+    if ext != "exr" {
+        let shim = shim().map_err(|message| ImageWriteError::OiioUnavailable { path: path.to_path_buf(), message })?;
+        let probe = CString::new(format!("probe.{ext}"))
+            .map_err(|_| ImageWriteError::InvalidPath { path: path.to_path_buf() })?;
+        let mut buf = [0u8; 512];
+        // SAFETY: `probe` is NUL-terminated; `buf` is writable for `buf.len()` bytes; the shim never
+        // throws across the boundary.
+        let status = unsafe { (shim.can_write)(probe.as_ptr(), buf.as_mut_ptr() as *mut c_char, buf.len()) };
+        if status != PLX_OK {
+            return Err(ImageWriteError::UnsupportedFormat { path: path.to_path_buf(), extension: ext });
+        }
     }
     // Dropping the probe removes it; a second Ctrl-C meanwhile waits for that.
     let _writing = crate::interrupt::FileWriting::enter();
@@ -400,6 +360,14 @@ fn encode_through_temp_file(path: &Path, image: &Image, opts: &WriteOptions) -> 
     }
 
     let encoding = encoding_for(path, opts);
+    let io_error = |source| ImageWriteError::Io { path: path.to_path_buf(), source };
+    if extension(path).as_deref() == Some("exr") {
+        return crate::interrupt::write_atomically(path, true, io_error, |_, file| {
+            super::exr_io::write_exr(file, image, encoding == Encoding::Half)
+                .map_err(|e| ImageWriteError::Exr { path: path.to_path_buf(), message: e.to_string() })
+        });
+    }
+    let shim = shim().map_err(|message| ImageWriteError::OiioUnavailable { path: path.to_path_buf(), message })?;
     let floats: Vec<f32>;
     let bytes: Vec<u8>;
     let (data_type, data, pixel_type): (c_int, *const c_void, c_int) = match encoding {
@@ -414,7 +382,6 @@ fn encode_through_temp_file(path: &Path, image: &Image, opts: &WriteOptions) -> 
         }
     };
 
-    let io_error = |source| ImageWriteError::Io { path: path.to_path_buf(), source };
     crate::interrupt::write_atomically(path, true, io_error, |temp, _| {
         let c_temp = c_path(temp)?;
         let mut buf = [0u8; 1024];
@@ -422,7 +389,7 @@ fn encode_through_temp_file(path: &Path, image: &Image, opts: &WriteOptions) -> 
         // (`floats` or `bytes`, alive until the end of this function); `buf` is writable for its
         // length; the shim catches every C++ exception.
         let status = unsafe {
-            plx_oiio_write_image(
+            (shim.write_image)(
                 c_temp.as_ptr(),
                 width,
                 height,
@@ -465,6 +432,69 @@ mod tests {
         assert!(err.to_string().contains("at most 65500 pixels"), "{err}");
         let left: Vec<_> = std::fs::read_dir(dir.path()).expect("read dir").collect();
         assert!(left.is_empty(), "left behind: {left:?}");
+    }
+
+    /// EXR is written by the `exr` crate since OpenImageIO is loaded only on demand: its half
+    /// rounding must be what OpenImageIO's (Imath's) was, bit for bit, for normals, ties (both
+    /// round to even), half subnormals, overflow to infinity and infinities; NaN stays NaN. The
+    /// same image written through the shim as half EXR is the oracle. Rounding ties away from
+    /// zero (`f16::from_f32(x + x * 2^-12)`, say) fails it.
+    #[test]
+    fn half_exr_rounds_as_openimageio_did() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let mut values =
+            vec![0.0f32, -0.0, 1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 65504.0, 65519.99, 65520.0];
+        // Ties and near-ties at several exponents: 1 + k·2^-11 is halfway between halves for odd k.
+        for e in [-20, -14, -3, 0, 7, 15] {
+            for k in 0..24 {
+                let v = 2f32.powi(e) * (1.0 + k as f32 * 2f32.powi(-11));
+                values.extend([v, -v, f32::from_bits(v.to_bits() + 1), f32::from_bits(v.to_bits() - 1)]);
+            }
+        }
+        // Half subnormals (below 2^-14), and f32s far below half's smallest subnormal.
+        values.extend((1..40).map(|i| i as f32 * 1.37e-8));
+        values.extend([1e-30, -1e-30, f32::MIN_POSITIVE]);
+        values.resize(values.len().next_multiple_of(3), 0.5);
+        let mut img = Image::new(values.len() / 3, 1);
+        for (p, c) in img.pixels.iter_mut().zip(values.chunks(3)) {
+            *p = glam::Vec3::new(c[0], c[1], c[2]);
+        }
+        let half = WriteOptions { half: true, ..WriteOptions::default() };
+        let ours = dir.path().join("exr-crate.exr");
+        write_image(&ours, &img, &half).unwrap();
+        let theirs = dir.path().join("oiio.exr");
+        let c = c_path(&theirs).unwrap();
+        let mut msg = [0u8; 512];
+        let floats: Vec<f32> = img.pixels.iter().flat_map(|p| p.to_array()).collect();
+        let shim = shim().unwrap();
+        // SAFETY: `c` is NUL-terminated, `floats` holds width·1·3 floats, `msg` its length.
+        let status = unsafe {
+            (shim.write_image)(
+                c.as_ptr(),
+                img.width as c_int,
+                1,
+                3,
+                PLX_DATA_FLOAT,
+                floats.as_ptr().cast(),
+                PLX_PIXEL_HALF,
+                msg.as_mut_ptr().cast(),
+                msg.len(),
+            )
+        };
+        assert_eq!(status, PLX_OK, "{}", message(&msg));
+        let halves = |path: &Path| {
+            let layer = exr::prelude::read_first_flat_layer_from_file(path).unwrap().layer_data;
+            ["R", "G", "B"].map(|name| {
+                let channel = layer.channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap();
+                let exr::prelude::FlatSamples::F16(v) = &channel.sample_data else { panic!("{name} is not half") };
+                v.clone()
+            })
+        };
+        let (a, b) = (halves(&ours), halves(&theirs));
+        for (i, &v) in values.iter().enumerate() {
+            let (x, y) = (a[i % 3][i / 3], b[i % 3][i / 3]);
+            assert!(x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan()), "{v:e}: exr {x} vs OpenImageIO {y}");
+        }
     }
 
     #[test]
