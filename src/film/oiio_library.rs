@@ -147,3 +147,27 @@ fn open(path: &str) -> Result<libloading::Library, String> {
     // run on any thread; the shim itself defines no static constructors.
     unsafe { libloading::Library::new(path) }.map_err(|e| e.to_string())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Both ways of handing the shim to the loader give a library with the shim's entry points
+    /// (the temporary file is only the fallback, so nothing else runs it), and the fallback leaves
+    /// no file behind.
+    #[test]
+    fn the_shim_loads_from_memory_and_from_a_temporary_file() {
+        for library in [open_from_memory(), open_from_temporary_file()] {
+            let library = library.unwrap();
+            // SAFETY: only the symbol's presence is checked; it is not called.
+            let symbol = unsafe { library.get::<CanWrite>(b"plx_oiio_can_write\0") };
+            assert!(symbol.is_ok());
+        }
+        let left = std::fs::read_dir(std::env::temp_dir())
+            .unwrap()
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().starts_with("plexus-oiio-shim-"))
+            .count();
+        assert_eq!(left, 0, "the temporary copy of the shim was left in {}", std::env::temp_dir().display());
+    }
+}
