@@ -118,6 +118,34 @@ fn only_outputs_that_need_it_load_openimageio() {
     assert!(loads_oiio("image.png"), "a PNG render did not load OpenImageIO");
 }
 
+/// Without a usable OpenImageIO (here a broken `libOpenImageIO.so.2.4` found first through
+/// `LD_LIBRARY_PATH`), an EXR render still works, and a PNG output is refused before rendering
+/// with the loader's reason, once.
+#[test]
+fn without_openimageio_exr_still_works_and_png_is_refused_with_the_reason() {
+    let tmp = scratch_dir("no-oiio");
+    let libs = tmp.path().join("lib");
+    std::fs::create_dir(&libs).unwrap();
+    std::fs::write(libs.join("libOpenImageIO.so.2.4"), b"not a library").unwrap();
+    let render = |out: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_plexus"))
+            .args(["render", "--spp", "1", "--threads", "1", "--out"])
+            .arg(tmp.path().join(out))
+            .env("LD_LIBRARY_PATH", &libs)
+            .output()
+            .unwrap()
+    };
+    let exr = render("image.exr");
+    assert!(exr.status.success(), "{}", String::from_utf8_lossy(&exr.stderr));
+    let png = render("image.png");
+    let err = String::from_utf8_lossy(&png.stderr);
+    assert_eq!(png.status.code(), Some(2), "{err}");
+    assert!(err.contains("OpenImageIO could not be loaded") && err.contains("file too short"), "{err}");
+    assert!(err.contains("EXR files are written without it") && !err.contains("in-memory"), "{err}");
+    // Refused before rendering: nothing new beside the EXR render's image and JSON.
+    assert_eq!(entries(tmp.path()), ["image.exr", "image.json", "lib"]);
+}
+
 #[test]
 fn half_exr_is_within_half_precision() {
     let tmp = scratch_dir("half-exr");

@@ -100,7 +100,14 @@ pub fn is_loaded() -> bool {
 
 fn load() -> Result<Shim, String> {
     let library = open_from_memory().or_else(|memfd_error| {
-        open_from_temporary_file().map_err(|e| format!("{e} (from an in-memory file: {memfd_error})"))
+        // A missing or broken OpenImageIO fails both ways with the same message: say it once.
+        open_from_temporary_file().map_err(|e| {
+            if e == memfd_error {
+                e
+            } else {
+                format!("{e} (from an in-memory file: {memfd_error})")
+            }
+        })
     })?;
     // SAFETY: each symbol is the shim's function of that name, whose C signature in
     // ffi/oiio_shim.h the type above matches.
