@@ -343,8 +343,9 @@ pub fn write_image(path: &Path, image: &Image, opts: &WriteOptions) -> Result<()
     encode_through_temp_file(path, image, opts)
 }
 
-/// The writing half of [`write_image`], after its checks: encodes through OpenImageIO into a
-/// temporary file beside `path` and renames it into place; on any failure the temporary is removed.
+/// The writing half of [`write_image`], after its checks: encodes (EXR with the `exr` crate, other
+/// formats through OpenImageIO) into a temporary file beside `path` and renames it into place; on
+/// any failure the temporary is removed.
 fn encode_through_temp_file(path: &Path, image: &Image, opts: &WriteOptions) -> Result<(), ImageWriteError> {
     let bad_image = || ImageWriteError::BadImage {
         path: path.to_path_buf(),
