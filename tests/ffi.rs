@@ -94,10 +94,10 @@ fn float_exr_round_trips_bit_for_bit() {
     );
 }
 
-/// An EXR output, and the check of its path before a render, must not load OpenImageIO (0.22 s
-/// and 130 MB per process, src/film/oiio_library.rs); a PNG output does. The dynamic loader's
-/// own log (`LD_DEBUG=libs`, on stderr) tells which libraries a `plexus render` initialised: the
-/// PNG render shows the check can fail.
+/// EXR and PNG outputs (the default render writes both), and the check of their paths before a
+/// render, must not load OpenImageIO (0.22 s and 130 MB per process, src/film/oiio_library.rs); a
+/// JPEG output does. The dynamic loader's own log (`LD_DEBUG=libs`, on stderr) tells which
+/// libraries a `plexus render` initialised: the JPEG render shows the check can fail.
 #[test]
 fn only_outputs_that_need_it_load_openimageio() {
     let tmp = scratch_dir("lazy-oiio");
@@ -115,14 +115,15 @@ fn only_outputs_that_need_it_load_openimageio() {
         log.contains("libOpenImageIO")
     };
     assert!(!loads_oiio("image.exr"), "an EXR render loaded OpenImageIO");
-    assert!(loads_oiio("image.png"), "a PNG render did not load OpenImageIO");
+    assert!(!loads_oiio("image.png"), "a PNG render loaded OpenImageIO");
+    assert!(loads_oiio("image.jpg"), "a JPEG render did not load OpenImageIO");
 }
 
 /// Without a usable OpenImageIO (here a broken `libOpenImageIO.so.2.4` found first through
-/// `LD_LIBRARY_PATH`), an EXR render still works, and a PNG output is refused before rendering
-/// with the loader's reason, once.
+/// `LD_LIBRARY_PATH`), EXR and PNG renders still work, and a JPEG output is refused before
+/// rendering with the loader's reason, once.
 #[test]
-fn without_openimageio_exr_still_works_and_png_is_refused_with_the_reason() {
+fn without_openimageio_exr_and_png_still_work_and_jpeg_is_refused_with_the_reason() {
     let tmp = scratch_dir("no-oiio");
     let libs = tmp.path().join("lib");
     std::fs::create_dir(&libs).unwrap();
@@ -135,15 +136,41 @@ fn without_openimageio_exr_still_works_and_png_is_refused_with_the_reason() {
             .output()
             .unwrap()
     };
-    let exr = render("image.exr");
-    assert!(exr.status.success(), "{}", String::from_utf8_lossy(&exr.stderr));
-    let png = render("image.png");
-    let err = String::from_utf8_lossy(&png.stderr);
-    assert_eq!(png.status.code(), Some(2), "{err}");
+    for out in ["image.exr", "image.png"] {
+        let done = render(out);
+        assert!(done.status.success(), "{out}: {}", String::from_utf8_lossy(&done.stderr));
+    }
+    let jpeg = render("image.jpg");
+    let err = String::from_utf8_lossy(&jpeg.stderr);
+    assert_eq!(jpeg.status.code(), Some(2), "{err}");
     assert!(err.contains("OpenImageIO could not be loaded") && err.contains("file too short"), "{err}");
-    assert!(err.contains("EXR files are written without it") && !err.contains("in-memory"), "{err}");
-    // Refused before rendering: nothing new beside the EXR render's image and JSON.
-    assert_eq!(entries(tmp.path()), ["image.exr", "image.json", "lib"]);
+    assert!(err.contains("EXR and PNG files are written without it") && !err.contains("in-memory"), "{err}");
+    // Refused before rendering: nothing new beside the two renders' images and JSON.
+    assert_eq!(entries(tmp.path()), ["image.exr", "image.json", "image.png", "lib"]);
+}
+
+/// A PNG written by the `png` crate reads back through OpenImageIO (the texture reader) as the
+/// tone mapper's codes, byte for byte, and says it is sRGB; with exposure, as the tone mapper
+/// applies it.
+#[test]
+fn png_reads_back_through_openimageio_as_the_tone_mappers_codes() {
+    let tmp = scratch_dir("png");
+    let path = tmp.path().join("image.png");
+    let mut img = Image::new(9, 7);
+    for (i, p) in img.pixels.iter_mut().enumerate() {
+        let v = i as f32 / 20.0;
+        *p = Rgb::new(v, 1.0 - v * 0.5, (v * 7.0).sin().abs() * 3.0);
+    }
+    for exposure in [0.0, -1.5] {
+        write_image(&path, &img, &WriteOptions { exposure, ..WriteOptions::default() }).unwrap();
+        let read = plexus::film::oiio::read_image(&path).unwrap();
+        assert_eq!((read.width, read.height, read.channels), (9, 7, 3));
+        assert_eq!(read.srgb, Some(true), "the file says it is sRGB");
+        let plexus::film::oiio::ReadPixels::Rgb8 { texels, .. } = read.data else { panic!("a PNG is read as codes") };
+        let codes: Vec<u8> = texels.iter().flatten().copied().collect();
+        assert_eq!(codes, plexus::film::tonemap::tonemap_srgb8(&img, exposure), "exposure {exposure}");
+    }
+    assert_eq!(entries(tmp.path()), ["image.png"]);
 }
 
 #[test]

@@ -6,6 +6,7 @@
 pub mod exr_io;
 pub mod oiio;
 pub mod oiio_library;
+pub mod png_io;
 pub mod tonemap;
 
 use glam::Vec2;

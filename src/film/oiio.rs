@@ -1,6 +1,7 @@
 //! Writing images, and reading them for textures: EXR is written by the `exr` crate
-//! ([`super::exr_io`]), every other format through OpenImageIO (the C shim in ffi/oiio_shim.cpp,
-//! loaded on first use by [`super::oiio_library`]), which also reads every bitmap.
+//! ([`super::exr_io`]), PNG by the `png` crate ([`super::png_io`]), every other format through
+//! OpenImageIO (the C shim in ffi/oiio_shim.cpp, loaded on first use by
+//! [`super::oiio_library`]), which also reads every bitmap.
 //!
 //! The format follows the file extension. Floating-point formats (`.exr`, `.hdr`, `.tif`/`.tiff`,
 //! `.pfm`) receive the linear image unchanged: `.exr` as 32-bit float, or half with
@@ -187,10 +188,11 @@ pub enum ImageWriteError {
     BadImage { path: PathBuf, width: usize, height: usize, pixels: usize },
     #[error("cannot write '{path}': OpenImageIO: {message}")]
     Oiio { path: PathBuf, message: String },
-    #[error("cannot write '{path}': {message} (EXR files are written without it)")]
+    #[error("cannot write '{path}': {message} (EXR and PNG files are written without it)")]
     OiioUnavailable { path: PathBuf, message: String },
+    /// The `exr` or `png` crate's encoder failed.
     #[error("cannot write '{path}': {message}")]
-    Exr { path: PathBuf, message: String },
+    Encoder { path: PathBuf, message: String },
     #[error("cannot write '{path}': {source}")]
     Io { path: PathBuf, source: std::io::Error },
 }
@@ -259,17 +261,15 @@ fn message(buf: &[u8]) -> String {
 /// libraries it writes through:
 /// - JPEG: 16-bit frame dimensions (ITU-T T.81, B.2.2), and libjpeg refuses more than
 ///   `JPEG_MAX_DIMENSION` = 65500 (jmorecfg.h).
-/// - PNG: libpng's default `PNG_USER_WIDTH_MAX`/`PNG_USER_HEIGHT_MAX` = 1000000 (pnglibconf.h);
-///   the format itself allows 2^31 - 1.
 /// - WebP: `WEBP_MAX_DIMENSION` = 16383 (libwebp encode.h).
 /// - Targa, GIF: 16-bit width and height fields.
 /// - ICO: 256 (one byte, 0 meaning 256).
 ///
+/// PNG (the `png` crate) and EXR (the `exr` crate) take any side up to 2^31 − 1, the shim's limit.
 /// Every format takes the three channels plexus writes.
 fn max_side(extension: &str) -> Option<usize> {
     Some(match extension {
         "jpg" | "jpeg" | "jpe" | "jfif" => 65_500,
-        "png" => 1_000_000,
         "webp" => 16_383,
         "tga" | "tpic" | "gif" => 65_535,
         "ico" => 256,
@@ -313,10 +313,10 @@ pub fn check_output_path(path: &Path) -> Result<(), ImageWriteError> {
     let Some(ext) = extension(path) else {
         return Err(ImageWriteError::NoExtension { path: path.to_path_buf() });
     };
-    // EXR is written by the `exr` crate; every other format needs OpenImageIO to have a writer for
-    // it. Only the extension matters to that lookup; passing a synthetic name keeps odd characters
-    // elsewhere in the path out of the question.
-    if ext != "exr" {
+    // EXR and PNG are written by the `exr` and `png` crates; every other format needs OpenImageIO
+    // to have a writer for it. Only the extension matters to that lookup; passing a synthetic name
+    // keeps odd characters elsewhere in the path out of the question.
+    if !matches!(ext.as_str(), "exr" | "png") {
         let shim = shim().map_err(|message| ImageWriteError::OiioUnavailable { path: path.to_path_buf(), message })?;
         let probe = CString::new(format!("probe.{ext}"))
             .map_err(|_| ImageWriteError::InvalidPath { path: path.to_path_buf() })?;
@@ -343,8 +343,8 @@ pub fn write_image(path: &Path, image: &Image, opts: &WriteOptions) -> Result<()
     encode_through_temp_file(path, image, opts)
 }
 
-/// The writing half of [`write_image`], after its checks: encodes (EXR with the `exr` crate, other
-/// formats through OpenImageIO) into a temporary file beside `path` and renames it into place; on
+/// The writing half of [`write_image`], after its checks: encodes (EXR and PNG with their crates,
+/// other formats through OpenImageIO) into a temporary file beside `path` and renames it into place; on
 /// any failure the temporary is removed.
 fn encode_through_temp_file(path: &Path, image: &Image, opts: &WriteOptions) -> Result<(), ImageWriteError> {
     let bad_image = || ImageWriteError::BadImage {
@@ -365,7 +365,14 @@ fn encode_through_temp_file(path: &Path, image: &Image, opts: &WriteOptions) -> 
     if extension(path).as_deref() == Some("exr") {
         return crate::interrupt::write_atomically(path, true, io_error, |_, file| {
             super::exr_io::write_exr(file, image, encoding == Encoding::Half)
-                .map_err(|e| ImageWriteError::Exr { path: path.to_path_buf(), message: e.to_string() })
+                .map_err(|e| ImageWriteError::Encoder { path: path.to_path_buf(), message: e.to_string() })
+        });
+    }
+    if extension(path).as_deref() == Some("png") {
+        let codes = tonemap::tonemap_srgb8(image, opts.exposure);
+        return crate::interrupt::write_atomically(path, true, io_error, |_, file| {
+            super::png_io::write_png(file, width as u32, height as u32, &codes)
+                .map_err(|e| ImageWriteError::Encoder { path: path.to_path_buf(), message: e.to_string() })
         });
     }
     let shim = shim().map_err(|message| ImageWriteError::OiioUnavailable { path: path.to_path_buf(), message })?;
