@@ -2,7 +2,8 @@
 //! (Veach & Guibas 1995; the structure follows pbrt-v4's `PathIntegrator`).
 //!
 //! At every non-specular vertex the estimator combines two techniques for direct light: a light
-//! sample (light chosen by the scene's light-selection pmf, then a point or direction on it) and the
+//! sample (light chosen by the scene's light-selection pmf, then a point or direction on it; a
+//! rectangle light seen from nearby by solid angle, `AreaLight::sample_li_nee`) and the
 //! BSDF sample that continues the path. Each is weighted with the power (β = 2) or balance heuristic
 //! over the two densities, both expressed per unit solid angle at the shading point, the light's
 //! including its selection probability. After a specular (delta) bounce no light sample is possible,
@@ -286,7 +287,7 @@ impl PathTracer {
                     let w = if specular_bounce {
                         1.0
                     } else {
-                        let pdf_light = self.light_pmf(scene, index) * light.pdf_li(prev_p, ray.d, si.p, si.ng);
+                        let pdf_light = self.light_pmf(scene, index) * light.pdf_li_nee(prev_p, ray.d, si.p, si.ng);
                         self.weight_bsdf_hit(prev_pdf, pdf_light)
                     };
                     if w > 0.0 {

@@ -10,6 +10,9 @@
 //!   `u[0]` unused, `u[1..3]` the direction towards the environment, `u[3..5]` the ray's origin on
 //!   the disk perpendicular to it.
 //! - light selection (`LightSampler`) takes its own single uniform.
+//! - the path tracer's light sample (`sample_li_point`, `li_from_point`, density `pdf_li_nee`)
+//!   takes `sample_li`'s 3 uniforms; near a rectangle light it samples by solid angle with
+//!   `u[1..3]` (`spherical_rectangle`) and has no inverse (nothing inverts pt's paths).
 //!
 //! Inverses take, for each ambiguous dimension (a discrete choice's interval, RJMLT Eq. 40, or an
 //! unused dimension), a fresh uniform `gamma` and return `None` for a point the sampler cannot
@@ -20,6 +23,7 @@
 
 mod area;
 mod environment;
+pub mod spherical_rectangle;
 pub mod sunsky;
 
 pub use area::{
@@ -99,6 +103,9 @@ pub struct AreaLight {
     /// Unit geometric normal of each triangle (`area::triangle_normal`), kept for light sampling.
     pub normals: Vec<Vec3>,
     pub area: f32,
+    /// The rectangle the mesh is, when it is one (two triangles): the path tracer samples it by
+    /// solid angle from nearby points (`AreaLight::sample_li_nee`).
+    pub rectangle: Option<spherical_rectangle::Rectangle>,
 }
 
 /// Radiance arriving equally from every direction at infinity.
@@ -131,6 +138,9 @@ pub struct ImageEnvironment {
 pub enum LiPoint {
     /// The point on an area light (`None` when the light cannot produce one).
     Area(Option<MeshPoint>),
+    /// For a rectangle light: the point by area, for a reference point far from it, and the
+    /// uniforms, for sampling by solid angle from one nearby (`AreaLight::sample_li_nee`).
+    Rectangle(Option<MeshPoint>, [f32; LI_SAMPLE_DIMS]),
     /// The uniforms, for a light whose sample needs the reference point throughout.
     Deferred([f32; LI_SAMPLE_DIMS]),
 }
@@ -211,26 +221,36 @@ pub struct EmissionSample {
 
 // INTERFACE (implementation owned by the sampling/materials/lights work):
 impl Light {
-    /// Samples a direction towards this light from `reference` with uniforms `u`.
+    /// Samples a direction towards this light from `reference` with uniforms `u` (area lights: a
+    /// point by area, the density BDPT's weights and the inverses are written in).
     pub fn sample_li(&self, reference: Vec3, u: [f32; LI_SAMPLE_DIMS]) -> Option<LightLiSample> {
-        self.li_from_point(reference, &self.sample_li_point(u))
+        match self {
+            Light::Area(l) => l.sample_li(reference, u),
+            Light::ConstantEnvironment(l) => l.sample_li(reference, u),
+            Light::ImageEnvironment(l) => l.sample_li(reference, u),
+        }
     }
-    /// The half of `sample_li` that does not depend on the reference point: for an area light the
-    /// point on the emitter (a path tracer draws it while the shading point's vertices are still
-    /// loading); for an environment nothing yet. [`Self::li_from_point`] completes it.
+    /// The path tracer's light sample (next-event estimation), in two halves: this one, which does
+    /// not depend on the reference point, is the point on an area light sampled by area (pt draws
+    /// it while the shading point's vertices are still loading), or the uniforms, kept for later,
+    /// for an environment and for a rectangle light (sampled by solid angle from nearby points,
+    /// `AreaLight::sample_li_nee`). [`Self::li_from_point`] completes it; [`Self::pdf_li_nee`] is
+    /// its density.
     #[inline(always)]
     pub fn sample_li_point(&self, u: [f32; LI_SAMPLE_DIMS]) -> LiPoint {
         match self {
-            Light::Area(l) => LiPoint::Area(l.sample_point(u)),
+            Light::Area(l) if l.rectangle.is_none() => LiPoint::Area(l.sample_point(u)),
+            Light::Area(l) => LiPoint::Rectangle(l.sample_point(u), u),
             Light::ConstantEnvironment(_) | Light::ImageEnvironment(_) => LiPoint::Deferred(u),
         }
     }
-    /// `sample_li` from its reference-independent half `point` (drawn by this light's
-    /// [`Self::sample_li_point`]).
+    /// The path tracer's light sample from its reference-independent half `point` (drawn by this
+    /// light's [`Self::sample_li_point`]).
     #[inline(always)]
     pub fn li_from_point(&self, reference: Vec3, point: &LiPoint) -> Option<LightLiSample> {
         match (self, point) {
             (Light::Area(l), LiPoint::Area(q)) => l.li_from_point(reference, q.as_ref()?),
+            (Light::Area(l), LiPoint::Rectangle(q, u)) => l.li_from_rectangle_point(reference, q.as_ref(), *u),
             (Light::ConstantEnvironment(l), LiPoint::Deferred(u)) => l.sample_li(reference, *u),
             (Light::ImageEnvironment(l), LiPoint::Deferred(u)) => l.sample_li(reference, *u),
             // A point drawn by another kind of light: a caller's bug (pt draws the point and
@@ -248,6 +268,14 @@ impl Light {
             Light::Area(l) => l.pdf_li(reference, wi, p_light, n_light),
             Light::ConstantEnvironment(l) => l.pdf_direction(wi),
             Light::ImageEnvironment(l) => l.pdf_direction(wi),
+        }
+    }
+    /// Solid-angle density at `reference` of the path tracer's light sample
+    /// ([`Self::sample_li_point`], [`Self::li_from_point`]) producing the point `p_light`.
+    pub fn pdf_li_nee(&self, reference: Vec3, wi: Vec3, p_light: Vec3, n_light: Vec3) -> f32 {
+        match self {
+            Light::Area(l) => l.pdf_li_nee(reference, wi, p_light, n_light),
+            _ => self.pdf_li(reference, wi, p_light, n_light),
         }
     }
     /// Inverse of `sample_li`: the uniforms that make `sample_li` choose the point `p_light` on
