@@ -151,9 +151,13 @@ impl SphericalRectangle {
         let cu = (1.0 / (fu * fu + self.b0 * self.b0).sqrt()).copysign(fu).clamp(-1.0, 1.0);
         let xu = (-(cu * z0) / (1.0 - cu * cu).max(0.0).sqrt()).clamp(x0, x1);
         // Eq. 13–16: the heights at the arc's ends, h uniform between them, back to y.
-        let dist = xu.hypot(z0);
-        let h0 = y0 / dist.hypot(y0);
-        let h1 = y1 / dist.hypot(y1);
+        // Square roots of sums of squares rather than `hypot`, whose overflow-safe libm call cost
+        // more than the rest of the sample; the values are lengths in the scene, far from
+        // overflow (tests/extremes.rs bounds the scene's scale).
+        let dist2 = xu * xu + z0 * z0;
+        let dist = dist2.sqrt();
+        let h0 = y0 / (dist2 + y0 * y0).sqrt();
+        let h1 = y1 / (dist2 + y1 * y1).sqrt();
         let hv = h0 + u[1] * (h1 - h0);
         let hv2 = hv * hv;
         let yv = if hv2 < 1.0 - 1e-6 { hv * dist / (1.0 - hv2).sqrt() } else { y1 };
