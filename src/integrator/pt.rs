@@ -313,7 +313,7 @@ impl PathTracer {
             if use_nee && !material.is_specular() {
                 let (index, pmf, point) = light_point.unwrap_or_else(|| choose_light(scene, u_light));
                 let light = &scene.lights[index];
-                if let Some(ls) = light.li_from_point(si.p, &point) {
+                if let Some(ls) = light.li_from_point(si.p, &point, [u_light[1], u_light[2], u_light[3]]) {
                     if ls.pdf > 0.0 && ls.radiance != Rgb::ZERO {
                         let wi = frame.to_local(ls.wi);
                         // f and the BSDF's density together (they share the half vector, D, Λ).

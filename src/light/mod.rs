@@ -138,9 +138,6 @@ pub struct ImageEnvironment {
 pub enum LiPoint {
     /// The point on an area light (`None` when the light cannot produce one).
     Area(Option<MeshPoint>),
-    /// For a rectangle light: the point by area, for a reference point far from it, and the
-    /// uniforms, for sampling by solid angle from one nearby (`AreaLight::sample_li_nee`).
-    Rectangle(Option<MeshPoint>, [f32; LI_SAMPLE_DIMS]),
     /// The uniforms, for a light whose sample needs the reference point throughout.
     Deferred([f32; LI_SAMPLE_DIMS]),
 }
@@ -233,24 +230,27 @@ impl Light {
     /// The path tracer's light sample (next-event estimation), in two halves: this one, which does
     /// not depend on the reference point, is the point on an area light sampled by area (pt draws
     /// it while the shading point's vertices are still loading), or the uniforms, kept for later,
-    /// for an environment and for a rectangle light (sampled by solid angle from nearby points,
-    /// `AreaLight::sample_li_nee`). [`Self::li_from_point`] completes it; [`Self::pdf_li_nee`] is
-    /// its density.
+    /// for an environment. [`Self::li_from_point`] completes it, sampling a rectangle light seen
+    /// from nearby by solid angle instead (`AreaLight::sample_li_nee`); [`Self::pdf_li_nee`] is its
+    /// density.
     #[inline(always)]
     pub fn sample_li_point(&self, u: [f32; LI_SAMPLE_DIMS]) -> LiPoint {
         match self {
-            Light::Area(l) if l.rectangle.is_none() => LiPoint::Area(l.sample_point(u)),
-            Light::Area(l) => LiPoint::Rectangle(l.sample_point(u), u),
+            Light::Area(l) => LiPoint::Area(l.sample_point(u)),
             Light::ConstantEnvironment(_) | Light::ImageEnvironment(_) => LiPoint::Deferred(u),
         }
     }
-    /// The path tracer's light sample from its reference-independent half `point` (drawn by this
-    /// light's [`Self::sample_li_point`]).
+    /// The path tracer's light sample from its reference-independent half `point`, drawn by this
+    /// light's [`Self::sample_li_point`] from the uniforms `u`, which a rectangle light seen from
+    /// nearby samples by solid angle instead (`u` is passed again rather than kept in `point`: the
+    /// caller has it, and `point` stays as small as the path tracer's loop had it).
     #[inline(always)]
-    pub fn li_from_point(&self, reference: Vec3, point: &LiPoint) -> Option<LightLiSample> {
+    pub fn li_from_point(&self, reference: Vec3, point: &LiPoint, u: [f32; LI_SAMPLE_DIMS]) -> Option<LightLiSample> {
         match (self, point) {
+            (Light::Area(l), LiPoint::Area(q)) if l.rectangle.is_some() => {
+                l.li_from_rectangle_point(reference, q.as_ref(), u)
+            }
             (Light::Area(l), LiPoint::Area(q)) => l.li_from_point(reference, q.as_ref()?),
-            (Light::Area(l), LiPoint::Rectangle(q, u)) => l.li_from_rectangle_point(reference, q.as_ref(), *u),
             (Light::ConstantEnvironment(l), LiPoint::Deferred(u)) => l.sample_li(reference, *u),
             (Light::ImageEnvironment(l), LiPoint::Deferred(u)) => l.sample_li(reference, *u),
             // A point drawn by another kind of light: a caller's bug (pt draws the point and
