@@ -427,6 +427,10 @@ mod tests {
         let light = AreaLight::new(mesh, 0, Rgb::ONE, false);
         let rect = light.rectangle.expect("two triangles forming a rectangle");
         assert!(AreaLight::new(square_mesh(), 0, Rgb::ONE, false).rectangle.is_none());
+        // The same rectangle with its second triangle wound the other way faces both ways.
+        let corners = vec![Vec3::ZERO, Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+        let flipped = Arc::new(TriangleMesh::new(corners, vec![[0, 1, 2], [0, 3, 2]], None, None).unwrap());
+        assert!(AreaLight::new(flipped, 0, Rgb::ONE, false).rectangle.is_none());
         let mut rng = Rng::new(11, 0);
         // Near (solid angle) and beyond one diagonal, √5 ≈ 2.24, of the centre (area).
         for (reference, by_solid_angle) in [(Vec3::new(0.5, 0.3, 0.4), true), (Vec3::new(6.0, 5.0, 9.0), false)] {

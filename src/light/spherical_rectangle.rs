@@ -31,7 +31,7 @@ pub struct Rectangle {
 impl Rectangle {
     /// The rectangle a mesh of exactly two triangles forms, when it is one (to a relative 1e-5:
     /// perpendicular sides, the fourth corner where the other three put it, both triangles facing
-    /// the same way), with `x × y` along the first triangle's normal `n`; else `None`.
+    /// the way of `n`, the first triangle's normal), with `x × y` along `n`; else `None`.
     pub fn from_mesh(mesh: &TriangleMesh, n: Vec3) -> Option<Rectangle> {
         if mesh.triangle_count() != 2 {
             return None;
@@ -49,7 +49,10 @@ impl Rectangle {
         let perpendicular = e1.dot(e2).abs() <= 1e-5 * l1 * l2;
         let fourth = ((s1 + s2 - p).as_dvec3() - q.as_dvec3()).length() <= 1e-5 * diagonal;
         let normal = e1.cross(e2).normalize().as_vec3();
-        let coplanar = [0, 1].iter().all(|&t| mesh.triangle_normal(t).dot(normal).abs() >= 1.0 - 1e-5);
+        // Both triangles in the rectangle's plane and facing the same way (a one-sided emitter
+        // whose triangles face opposite ways emits to both sides, each from half of it).
+        let coplanar =
+            normal.dot(n).abs() >= 1.0 - 1e-5 && [0, 1].iter().all(|&t| mesh.triangle_normal(t).dot(n) >= 1.0 - 1e-5);
         if !(l1 > 0.0 && l2 > 0.0 && perpendicular && fourth && coplanar && normal.is_finite()) {
             return None;
         }
