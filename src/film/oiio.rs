@@ -265,7 +265,8 @@ fn message(buf: &[u8]) -> String {
 /// - Targa, GIF: 16-bit width and height fields.
 /// - ICO: 256 (one byte, 0 meaning 256).
 ///
-/// PNG (the `png` crate) and EXR (the `exr` crate) take any side up to 2^31 − 1, the shim's limit.
+/// PNG (the `png` crate) and EXR (the `exr` crate) have no limit of their own below the 2^31 − 1
+/// that [`check_output`] applies to every format.
 /// Every format takes the three channels plexus writes.
 fn max_side(extension: &str) -> Option<usize> {
     Some(match extension {
@@ -362,18 +363,22 @@ fn encode_through_temp_file(path: &Path, image: &Image, opts: &WriteOptions) -> 
 
     let encoding = encoding_for(path, opts);
     let io_error = |source| ImageWriteError::Io { path: path.to_path_buf(), source };
-    if extension(path).as_deref() == Some("exr") {
-        return crate::interrupt::write_atomically(path, true, io_error, |_, file| {
-            super::exr_io::write_exr(file, image, encoding == Encoding::Half)
-                .map_err(|e| ImageWriteError::Encoder { path: path.to_path_buf(), message: e.to_string() })
-        });
-    }
-    if extension(path).as_deref() == Some("png") {
-        let codes = tonemap::tonemap_srgb8(image, opts.exposure);
-        return crate::interrupt::write_atomically(path, true, io_error, |_, file| {
-            super::png_io::write_png(file, width as u32, height as u32, &codes)
-                .map_err(|e| ImageWriteError::Encoder { path: path.to_path_buf(), message: e.to_string() })
-        });
+    let encoder_error = |message: String| ImageWriteError::Encoder { path: path.to_path_buf(), message };
+    match extension(path).as_deref() {
+        Some("exr") => {
+            return crate::interrupt::write_atomically(path, true, io_error, |_, file| {
+                super::exr_io::write_exr(file, image, encoding == Encoding::Half)
+                    .map_err(|e| encoder_error(e.to_string()))
+            });
+        }
+        Some("png") => {
+            let codes = tonemap::tonemap_srgb8(image, opts.exposure);
+            return crate::interrupt::write_atomically(path, true, io_error, |_, file| {
+                super::png_io::write_png(file, width as u32, height as u32, &codes)
+                    .map_err(|e| encoder_error(e.to_string()))
+            });
+        }
+        _ => {}
     }
     let shim = shim().map_err(|message| ImageWriteError::OiioUnavailable { path: path.to_path_buf(), message })?;
     let floats: Vec<f32>;

@@ -313,7 +313,7 @@ impl PathTracer {
             if use_nee && !material.is_specular() {
                 let (index, pmf, point) = light_point.unwrap_or_else(|| choose_light(scene, u_light));
                 let light = &scene.lights[index];
-                if let Some(ls) = light.li_from_point(si.p, &point, [u_light[1], u_light[2], u_light[3]]) {
+                if let Some(ls) = light.li_from_point(si.p, &point, light_point_uniforms(u_light)) {
                     if ls.pdf > 0.0 && ls.radiance != Rgb::ZERO {
                         let wi = frame.to_local(ls.wi);
                         // f and the BSDF's density together (they share the half vector, D, Λ).
@@ -433,7 +433,13 @@ impl PathTracer {
 #[inline(always)]
 fn choose_light(scene: &Scene, u: [f32; 4]) -> (usize, f32, LiPoint) {
     let (index, pmf) = scene.light_sampler.distribution.sample_index(u[0]);
-    (index, pmf, scene.lights[index].sample_li_point([u[1], u[2], u[3]]))
+    (index, pmf, scene.lights[index].sample_li_point(light_point_uniforms(u)))
+}
+
+/// The light sample's uniforms after the light's choice (`u[0]`): the point's or direction's three.
+#[inline(always)]
+fn light_point_uniforms(u: [f32; 4]) -> [f32; 3] {
+    [u[1], u[2], u[3]]
 }
 
 /// What a path carries from the vertex a ray leaves: its throughput, η² product (for roulette),
