@@ -42,8 +42,9 @@ h, m, s = (["0"] + t["Elapsed (wall clock) time (h:mm:ss or m:ss)"].split(":"))[
 wall = 3600 * float(h) + 60 * float(m) + float(s)
 cpu = float(t["User time (seconds)"]) + float(t["System time (seconds)"])
 peak = int(t["Maximum resident set size (kbytes)"]) / 1024
-est = json.load(open(sys.argv[2]))["render_memory"]["scene"]
-total = sum(est.values()) / 2**20
+# The scene's part of the estimate (SceneMemory::total: the corner copies and the accelerator's
+# build temporaries are never held at once, so the larger of the two counts).
+total = json.load(open(sys.argv[2]))["memory"]["total"] / 2**20
 print(f"| {sys.argv[3]} | {sys.argv[4]} | {wall:.1f} | {cpu:.1f} | {peak:.0f} | {total:.0f} | {total / peak:.2f} |")
 PY
     done

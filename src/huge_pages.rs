@@ -60,6 +60,16 @@ pub(crate) fn on_huge_pages<T: Copy>(mut v: Vec<T>, spare: usize) -> Vec<T> {
     copy
 }
 
+/// An empty `Vec` with room for `capacity` elements, advised for huge pages (before anything is
+/// written) when it holds 1–64 MiB, as [`on_huge_pages`] places an array it is given.
+pub(crate) fn vec_for_random_reads<T>(capacity: usize) -> Vec<T> {
+    let v = Vec::with_capacity(capacity);
+    if (HUGE_PAGE_MIN_BYTES..=HUGE_PAGE_ARRAY_BYTES).contains(&(capacity * std::mem::size_of::<T>())) {
+        advise_huge_pages(&v);
+    }
+    v
+}
+
 /// A fixed-length array of `Copy` elements which, when it holds between [`HUGE_PAGE_MIN_BYTES`]
 /// and [`HUGE_PAGE_ARRAY_BYTES`] bytes, lives in its own 2 MiB-aligned anonymous mapping (its
 /// length rounded up to whole huge pages) advised for huge pages before it is first written;

@@ -200,6 +200,38 @@ fn embree_and_bvh_give_the_same_image() {
     }
 }
 
+/// The corner copies a scene keeps for shading (`Scene::keep_corners_if_room`) hold each
+/// triangle's positions in its winding, so a render reads the same f32 values with them as through
+/// the mesh's indices: pt and BDPT images bit for bit the same with the copies and without them, on
+/// the Cornell box (positions only) and the door (meshes with normals and uvs, read through the
+/// indices beside the copies). A copy in another vertex order (checked: corners rotated by one)
+/// weights the barycentrics against the wrong vertices and changes the pixels' bits.
+#[test]
+fn corner_copies_change_no_pixel() {
+    let door = || {
+        let mut loaded = load_scene(Path::new("scenes/veach-ajar.toml"), Some(AccelKind::Embree)).expect("door");
+        let c = &loaded.scene.camera;
+        loaded.scene.camera = Camera::new(c.position, c.position + c.forward, c.up, c.fov_y_degrees, 48, 27);
+        loaded
+    };
+    for (name, mut loaded) in [("cornell", small_cornell(AccelKind::Embree, 32)), ("door", door())] {
+        let scene = &loaded.scene;
+        assert_eq!(scene.corners.len(), scene.meshes.len(), "{name}: a tiny scene keeps its corners");
+        for (g, mesh) in scene.meshes.iter().enumerate() {
+            for prim in 0..mesh.triangle_count() as u32 {
+                let bits = |t: [glam::Vec3; 3]| t.map(|v| v.to_array().map(f32::to_bits));
+                assert_eq!(bits(scene.triangle(g as u32, prim)), bits(mesh.triangle(prim)), "{name}: mesh {g}, {prim}");
+            }
+        }
+        let with: Vec<_> = [("pt", 4), ("bdpt", 1)].map(|(i, spp)| render(&loaded, i, "", spp, 3, 2)).into();
+        loaded.scene.corners.clear();
+        for (out, (integrator, spp)) in with.iter().zip([("pt", 4), ("bdpt", 1)]) {
+            let without = render(&loaded, integrator, "", spp, 3, 2);
+            assert_eq!(bits(&out.image), bits(&without.image), "{name}, {integrator}");
+        }
+    }
+}
+
 /// Splitting (`first_bounce_paths`) is unbiased, weights emission and light samples as the unsplit
 /// path does, and lets every branch roll roulette as a whole path would. The furnace has a closed
 /// form (Le / (1 − ρ), every vertex emitting: emission found by the branches' rays is MIS-weighted

@@ -25,16 +25,23 @@ impl SurfaceInteraction {
     /// interpolation: γ(7)·Σ|b_i v_i| (pbrt-v4 Sec. 6.8.5).
     #[inline(always)]
     pub fn from_hit(mesh: &TriangleMesh, hit: &Hit) -> SurfaceInteraction {
-        let [v0, v1, v2] = mesh.triangle(hit.prim_id);
+        SurfaceInteraction::from_corners(mesh, mesh.triangle(hit.prim_id), hit)
+    }
+
+    /// [`Self::from_hit`] given the triangle's three positions (`mesh.triangle(hit.prim_id)`, or
+    /// the same values from `Scene`'s corner copies); reads the mesh's indices only for its normals
+    /// or uvs.
+    #[inline(always)]
+    pub fn from_corners(mesh: &TriangleMesh, [v0, v1, v2]: [Vec3; 3], hit: &Hit) -> SurfaceInteraction {
         let b1 = hit.b1;
         let b2 = hit.b2;
         let b0 = 1.0 - b1 - b2;
         let p = v0 * b0 + v1 * b1 + v2 * b2;
         let p_error = gamma(7) * ((v0 * b0).abs() + (v1 * b1).abs() + (v2 * b2).abs());
         let ng = triangle_normal(v0, v1, v2);
-        let idx = mesh.indices()[hit.prim_id as usize];
         let ns = match mesh.normals() {
             Some(ns) => {
+                let idx = mesh.indices()[hit.prim_id as usize];
                 let n = ns[idx[0] as usize] * b0 + ns[idx[1] as usize] * b1 + ns[idx[2] as usize] * b2;
                 let n = n.normalize_or(ng);
                 if n.dot(ng) < 0.0 {
@@ -46,7 +53,10 @@ impl SurfaceInteraction {
             None => ng,
         };
         let uv = match mesh.uvs() {
-            Some(uv) => uv[idx[0] as usize] * b0 + uv[idx[1] as usize] * b1 + uv[idx[2] as usize] * b2,
+            Some(uv) => {
+                let idx = mesh.indices()[hit.prim_id as usize];
+                uv[idx[0] as usize] * b0 + uv[idx[1] as usize] * b1 + uv[idx[2] as usize] * b2
+            }
             None => Vec2::new(b1, b2),
         };
         SurfaceInteraction {

@@ -1,8 +1,9 @@
 use glam::{Vec2, Vec3};
+use rayon::prelude::*;
 use thiserror::Error;
 
 use super::Aabb;
-use crate::huge_pages::on_huge_pages;
+use crate::huge_pages::{on_huge_pages, vec_for_random_reads};
 use crate::prefetch::prefetch;
 
 /// Why a mesh was refused.
@@ -165,6 +166,20 @@ impl TriangleMesh {
                 prefetch(uv);
             }
         }
+    }
+    /// Whether the mesh has per-vertex normals or uvs (which a hit reads through its indices).
+    #[inline]
+    pub fn has_vertex_attributes(&self) -> bool {
+        self.normals.is_some() || self.uvs.is_some()
+    }
+    /// Each triangle's three positions side by side, in its winding (36 bytes a triangle): what
+    /// `Scene` keeps for shading (`Scene::keep_corners_if_room`). The same f32 values as
+    /// [`Self::triangle`].
+    pub fn corner_copies(&self) -> Vec<[Vec3; 3]> {
+        let mut corners = vec_for_random_reads(self.indices.len());
+        let p = &self.padded_positions;
+        corners.par_extend(self.indices.par_iter().map(|&[a, b, c]| [p[a as usize], p[b as usize], p[c as usize]]));
+        corners
     }
     #[inline]
     pub fn triangle(&self, prim: u32) -> [Vec3; 3] {

@@ -41,6 +41,9 @@ const SUBCHAIN_BYTES_PER_VERTEX: u64 = 2 * 64;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct SceneMemory {
     pub meshes: u64,
+    /// The triangles' corner copies the scene keeps for shading (`Scene::keep_corners_if_room`),
+    /// made after the accelerator's build: they and `accel_build` are never held at once.
+    pub corners: u64,
     pub accel: u64,
     /// Bytes the accelerator held only while it was built, on top of `accel` (`Accel::
     /// peak_memory_bytes` minus `memory_bytes`): part of the process's peak, freed before rendering.
@@ -52,10 +55,12 @@ pub struct SceneMemory {
 }
 
 impl SceneMemory {
+    /// The scene's peak: what it holds while rendering, or while its accelerator was built (the
+    /// build's temporaries instead of the corner copies), whichever is more.
     pub fn total(&self) -> u64 {
         self.meshes
             .saturating_add(self.accel)
-            .saturating_add(self.accel_build)
+            .saturating_add(self.accel_build.max(self.corners))
             .saturating_add(self.lights)
             .saturating_add(self.textures)
     }
@@ -176,12 +181,13 @@ pub fn check_fits(memory: &RenderMemory, width: u32, height: u32, available: Opt
     let Some(available) = available else { return Ok(()) };
     if memory.total() > available {
         return Err(RenderError::Limit(format!(
-            "a {width}x{height} render needs at least {:.2} GiB (scene {:.2}: meshes {:.2}, accelerator {:.2}, \
-             lights {:.2}, textures {:.2}; film {:.2}, pass buffers {:.2}, chains {:.2}) but only {:.2} GiB are \
+            "a {width}x{height} render needs at least {:.2} GiB (scene {:.2}: meshes {:.2} and their corners {:.2}, \
+             accelerator {:.2}, lights {:.2}, textures {:.2}; film {:.2}, pass buffers {:.2}, chains {:.2}) but only {:.2} GiB are \
              available to the process; lower the resolution{}",
             gib(memory.total()),
             gib(memory.scene.total()),
             gib(memory.scene.meshes),
+            gib(memory.scene.corners),
             gib(memory.scene.accel),
             gib(memory.scene.lights),
             gib(memory.scene.textures),
@@ -210,10 +216,14 @@ mod tests {
         assert!(check_fits(&m, 65536, 65536, Some(m.total())).is_ok());
         assert!(check_fits(&m, 65536, 65536, None).is_ok());
         // The scene's bytes count too.
-        let scene = SceneMemory { meshes: 1, accel: 2, accel_build: 0, lights: 3, textures: 4 };
+        let scene = SceneMemory { meshes: 1, corners: 0, accel: 2, accel_build: 0, lights: 3, textures: 4 };
         let with = m.with_scene(scene);
         assert_eq!(with.total(), m.total() + 10);
         assert!(check_fits(&with, 65536, 65536, Some(m.total())).is_err());
+        // The corner copies are made once the build's temporaries are freed: the larger counts.
+        let built = SceneMemory { meshes: 10, corners: 5, accel: 20, accel_build: 8, lights: 1, textures: 2 };
+        assert_eq!(built.total(), 10 + 20 + 8 + 1 + 2);
+        assert_eq!(SceneMemory { corners: 9, ..built }.total(), 10 + 20 + 9 + 1 + 2);
     }
 
     #[test]

@@ -263,7 +263,7 @@ impl PathTracer {
             // interaction was stored field by field and copied with wider loads that could not
             // be forwarded from those stores (perf annotate: ~10% of the loop's samples).
             let si = match hit {
-                Some(hit) if !scene.masked => SurfaceInteraction::from_hit(&scene.meshes[hit.geom_id as usize], &hit),
+                Some(hit) if !scene.masked => scene.surface(&hit),
                 Some(hit) => match scene.interaction(&ray, &hit) {
                     Some(si) => si,
                     None => {

@@ -72,6 +72,8 @@ pub struct SceneInfo {
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct MemoryEstimate {
     pub meshes: usize,
+    /// The triangles' corner copies kept for shading (`Scene::keep_corners_if_room`).
+    pub corners: usize,
     pub accel: usize,
     /// Held by the accelerator only while it was built (part of loading's peak).
     pub accel_build: usize,
@@ -190,6 +192,7 @@ impl Scene {
             + distribution_bytes(&self.light_sampler.distribution);
         SceneMemory {
             meshes: meshes as u64,
+            corners: self.corners.iter().map(|c| (c.capacity() * std::mem::size_of::<[glam::Vec3; 3]>()) as u64).sum(),
             accel: self.accel.memory_bytes() as u64,
             accel_build: self.accel.peak_memory_bytes().saturating_sub(self.accel.memory_bytes()) as u64,
             lights: lights as u64,
@@ -221,6 +224,7 @@ pub fn scene_info(scene: &Scene) -> SceneInfo {
         accel: scene.accel.kind().to_string(),
         memory: MemoryEstimate {
             meshes: memory.meshes as usize,
+            corners: memory.corners as usize,
             accel: memory.accel as usize,
             accel_build: memory.accel_build as usize,
             lights: memory.lights as usize,
@@ -251,10 +255,11 @@ impl fmt::Display for SceneInfo {
         writeln!(f, "resolution:  {}x{}", self.resolution[0], self.resolution[1])?;
         write!(
             f,
-            "memory:      {:.2} MiB for the scene (meshes {:.2}, {} accelerator {:.2} and {:.2} more while built, \
+            "memory:      {:.2} MiB for the scene (meshes {:.2} and their corners {:.2}, {} accelerator {:.2} and {:.2} more while built, \
              lights {:.2}, textures {:.2})",
             mib(self.memory.total),
             mib(self.memory.meshes),
+            mib(self.memory.corners),
             self.accel,
             mib(self.memory.accel),
             mib(self.memory.accel_build),

@@ -189,7 +189,7 @@ impl Builder<'_> {
             message: e.to_string(),
         })?;
         let masked = infos.iter().any(|info| materials[info.material as usize].is_masked());
-        let scene = Scene {
+        let mut scene = Scene {
             camera,
             meshes,
             shapes: infos,
@@ -200,9 +200,11 @@ impl Builder<'_> {
             environment,
             portals,
             accel,
+            corners: Vec::new(),
             bounds,
             source: None,
         };
+        scene.keep_corners_if_room();
         Ok(LoadedScene { scene, render })
     }
 

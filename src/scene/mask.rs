@@ -74,7 +74,7 @@ pub(super) fn closest_opaque(scene: &Scene, ray: &Ray, mut si: SurfaceInteractio
             return None;
         }
         let hit = scene.accel.intersect(&current)?;
-        si = SurfaceInteraction::from_hit(&scene.meshes[hit.geom_id as usize], &hit);
+        si = scene.surface(&hit);
     }
     si.t = (si.p - ray.o).dot(ray.d) / ray.d.length_squared();
     Some(si)
@@ -83,6 +83,6 @@ pub(super) fn closest_opaque(scene: &Scene, ray: &Ray, mut si: SurfaceInteractio
 /// Whether a surface along `ray` stops it.
 pub(super) fn occluded(scene: &Scene, ray: &Ray) -> bool {
     let Some(hit) = scene.accel.intersect(ray) else { return false };
-    let si = SurfaceInteraction::from_hit(&scene.meshes[hit.geom_id as usize], &hit);
+    let si = scene.surface(&hit);
     closest_opaque(scene, ray, si).is_some()
 }
