@@ -389,7 +389,7 @@ pub fn run(
                 opts.seed,
                 &pool,
                 &bounce_rays,
-                &|r| embree.scene().intersect(r),
+                &|r| bare.intersect(r),
             )?;
             let total = (m.rays + m.shadow_rays) as f64;
             let bounce = bounce_rays.len() as f64;
