@@ -325,7 +325,6 @@ pub fn run(
     let mut bvh_bytes = 0;
     let mut embree_bytes = 0;
     let mut path_tracer = Vec::new();
-    let mut renderable: Option<Scene> = None;
     for &threads in &opts.threads {
         let pool = thread_pool(threads)?;
 
@@ -374,12 +373,13 @@ pub fn run(
         drop(bvh);
 
         if opts.pt_spp > 0 {
-            // Built on first use, after the accelerator timings, which it would otherwise share
-            // memory with.
-            if renderable.is_none() {
-                renderable = Some(scene.renderable()?);
-            }
-            let Some(renderable) = &renderable else { continue };
+            // Built after the accelerator timings, which it would otherwise share memory with,
+            // and dropped with this thread count's devices at the end of the iteration: Embree's
+            // task scheduler runs on as many threads as the most any live device asks for, so a
+            // renderable scene (no thread limit) kept alive would let a later `threads=1` device
+            // build on every core (the same reason as `reference` above).
+            let renderable = scene.renderable()?;
+            let renderable = &renderable;
             let m = measure_path_tracer(
                 renderable,
                 threads,
