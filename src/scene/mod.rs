@@ -100,11 +100,17 @@ impl Scene {
         }
     }
 
+    /// The corner copy of triangle `prim` of mesh `geom_id`, where the scene keeps one.
+    #[inline(always)]
+    fn kept_corners(&self, geom_id: u32, prim: u32) -> Option<&[Vec3; 3]> {
+        self.corners.get(geom_id as usize).and_then(|c| c.get(prim as usize))
+    }
+
     /// The positions of triangle `prim` of mesh `geom_id`: from the corner copies where the scene
     /// keeps them, else through the mesh's indices (the same values).
     #[inline(always)]
     pub fn triangle(&self, geom_id: u32, prim: u32) -> [Vec3; 3] {
-        match self.corners.get(geom_id as usize).and_then(|c| c.get(prim as usize)) {
+        match self.kept_corners(geom_id, prim) {
             Some(corners) => *corners,
             None => self.meshes[geom_id as usize].triangle(prim),
         }
@@ -139,7 +145,7 @@ impl Scene {
     pub fn hit(&self, ray: &Ray) -> Option<Hit> {
         let hit = self.accel.intersect(ray)?;
         if let Some(mesh) = self.meshes.get(hit.geom_id as usize) {
-            match self.corners.get(hit.geom_id as usize).and_then(|c| c.get(hit.prim_id as usize)) {
+            match self.kept_corners(hit.geom_id, hit.prim_id) {
                 Some([first, _, last]) => {
                     // 36 bytes: the first and the last position name both lines they can span.
                     prefetch(first);
@@ -158,8 +164,7 @@ impl Scene {
     #[inline]
     pub fn prefetch_vertices(&self, hit: &Hit) {
         if let Some(mesh) = self.meshes.get(hit.geom_id as usize) {
-            let kept = self.corners.get(hit.geom_id as usize).is_some_and(|c| !c.is_empty());
-            if !kept || mesh.has_vertex_attributes() {
+            if self.kept_corners(hit.geom_id, hit.prim_id).is_none() || mesh.has_vertex_attributes() {
                 mesh.prefetch_vertices(hit.prim_id);
             }
         }
