@@ -193,6 +193,12 @@ impl Scene {
     pub fn material(&self, si: &SurfaceInteraction) -> Bsdf {
         self.bsdf(self.shapes[si.geom_id as usize].material, si.uv)
     }
+    /// The material of the shape `si` lies on, before its textures are looked up
+    /// (`SurfaceMaterial::bsdf_at(si.uv)` is [`Self::material`]).
+    #[inline(always)]
+    pub fn surface_material(&self, si: &SurfaceInteraction) -> &SurfaceMaterial {
+        &self.materials[self.shapes[si.geom_id as usize].material as usize]
+    }
     /// Whether the BSDF of a hit on shape `geom_id` reads bitmap texels (cache misses worth
     /// starting early: `prefetch_texels`).
     #[inline]
