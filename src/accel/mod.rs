@@ -18,6 +18,17 @@ use crate::geometry::{Hit, Ray, TriangleMesh};
 pub trait Accel: Send + Sync {
     /// Closest hit with `t` in `[ray.t_min, ray.t_max]`, if any.
     fn intersect(&self, ray: &Ray) -> Option<Hit>;
+    /// Closest hits of rays that start close together and point about the same way (a camera's
+    /// rays through neighbouring pixels): `hits[i]` for `rays[i]`. An accelerator with packet
+    /// queries traces them together; its packet kernel may round differently from its single-ray
+    /// one, so on rare rays (a shared edge, a tie) the hit can be another triangle's or differ in
+    /// the last bits (Embree: 6 of 9.1 million rays on the living room). `hits` must be as long as
+    /// `rays`.
+    fn intersect_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+            *hit = self.intersect(ray);
+        }
+    }
     /// Whether anything is hit with `t` in `[ray.t_min, ray.t_max]`.
     fn occluded(&self, ray: &Ray) -> bool;
     /// Which implementation this is.

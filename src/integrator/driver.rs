@@ -76,7 +76,7 @@ mod image;
 pub use chains::{
     boundary_counters, load_units, merge_chain_parts, merge_slot_states, save_units, ChainPart, ChainSession, Tally,
 };
-pub use image::{state_film, ImagePart, ImagePlan, ImageRender, ImageRun, Tile, TILE_SIZE};
+pub use image::{state_film, ImagePart, ImagePlan, ImageRender, ImageRun, Tile, TileSamples, TILE_SIZE};
 
 /// A pass should hold at least this many pixel samples, so that the per-pass synchronisation
 /// costs nothing measurable even for tiny images.

@@ -17,12 +17,12 @@
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
-use super::driver::{ImagePart, ImageRender, ImageRun};
+use super::driver::{ImagePart, ImageRender, ImageRun, Slot};
 use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
-use crate::geometry::{Ray, SurfaceInteraction};
+use crate::geometry::{Hit, Ray, SurfaceInteraction};
 use crate::light::LiPoint;
 use crate::material::{Bsdf, BsdfSample, TransportMode};
-use crate::sampling::{SamplerKind, UniformSource};
+use crate::sampling::{PixelSampler, SamplerKind, SobolStream, UniformSource};
 use crate::scene::Scene;
 use crate::spectrum::{is_finite, Rgb};
 use crate::state::{RenderState, Session};
@@ -162,22 +162,51 @@ impl PathTracer {
     /// from `rng`: the light sample's, then the BSDF sample's three and Russian roulette's one
     /// (their lanes: `choose_light`, `light_point_uniforms`, `bsdf_uniforms`).
     pub fn li(&self, scene: &Scene, ray: Ray, rng: &mut impl UniformSource, counters: &mut Counters) -> Rgb {
+        self.li_camera_path(scene, ray, None, rng, counters)
+    }
+
+    /// [`Self::li`] for a camera ray whose closest hit `hit` (`Scene::hits_coherent`) was traced
+    /// already, with other camera rays in a packet: given the same hit, the same path and the same
+    /// numbers.
+    pub fn li_from_hit(
+        &self,
+        scene: &Scene,
+        ray: Ray,
+        hit: Option<Hit>,
+        rng: &mut impl UniformSource,
+        counters: &mut Counters,
+    ) -> Rgb {
+        self.li_camera_path(scene, ray, Some(hit), rng, counters)
+    }
+
+    #[inline(always)]
+    fn li_camera_path(
+        &self,
+        scene: &Scene,
+        ray: Ray,
+        first_hit: Option<Option<Hit>>,
+        rng: &mut impl UniformSource,
+        counters: &mut Counters,
+    ) -> Rgb {
         let start =
             PathState { beta: Rgb::ONE, eta_scale: 1.0, specular_bounce: true, prev_pdf: 0.0, prev_p: ray.o, depth: 0 };
         if self.settings.first_bounce_paths > 1 {
-            self.trace::<true>(scene, ray, start, rng, counters)
+            self.trace::<true>(scene, ray, first_hit, start, rng, counters)
         } else {
-            self.trace::<false>(scene, ray, start, rng, counters)
+            self.trace::<false>(scene, ray, first_hit, start, rng, counters)
         }
     }
 
     /// The path from `ray` on, its state at the vertex `ray` leaves being `start`; with `SPLITS`,
     /// split into `first_bounce_paths` paths at its first vertex (depth 1). Unsplit paths get
-    /// their own copy of the loop without the split's bookkeeping.
+    /// their own copy of the loop without the split's bookkeeping. `first_hit`, when given, is
+    /// `ray`'s closest hit, traced already.
+    #[allow(clippy::too_many_arguments)]
     fn trace<const SPLITS: bool>(
         &self,
         scene: &Scene,
         mut ray: Ray,
+        mut first_hit: Option<Option<Hit>>,
         start: PathState,
         rng: &mut impl UniformSource,
         counters: &mut Counters,
@@ -214,7 +243,15 @@ impl PathTracer {
 
         loop {
             counters.rays += 1;
-            let hit = scene.hit(&ray);
+            let hit = match first_hit.take() {
+                Some(hit) => {
+                    if let Some(hit) = &hit {
+                        scene.prefetch_hit(hit);
+                    }
+                    hit
+                }
+                None => scene.hit(&ray),
+            };
             // On a surface whose BSDF reads bitmap texels, the pending shadow ray waits until the
             // interaction gives the uv and the texels are asked for: it then covers their misses
             // (about 13% of the door's time) instead of the indices'. Either way it is resolved
@@ -387,7 +424,7 @@ impl PathTracer {
         };
         let state =
             PathState { beta, eta_scale, specular_bounce: bs.delta, prev_pdf: bs.pdf, prev_p: v.si.p, depth: 1 };
-        self.trace::<false>(scene, ray, state, rng, counters)
+        self.trace::<false>(scene, ray, None, state, rng, counters)
     }
 
     /// The continuation from a vertex at `depth`: samples the BSDF with `u` (three numbers, then
@@ -431,6 +468,9 @@ impl PathTracer {
         scene.light_sampler.distribution.pdf_discrete(index as usize)
     }
 }
+
+/// Camera rays traced together (`Scene::hits_coherent`): Embree's packet width.
+const CAMERA_PACKET: usize = crate::accel::embree::PACKET_WIDTH;
 
 /// Light selection and the emitter half of its sample (`Light::sample_li_point`) from the light
 /// sample's four uniforms; only called when there are lights. Inlined: called out of line, its
@@ -601,19 +641,55 @@ impl PathTracer {
         let render = ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?
             .with_session(session, save)?
             .with_sampler(self.settings.sampler);
-        let (run, _) = render.run(
+        // `li` adds only finite contributions, but their sum can still overflow.
+        let record = |x: u32, y: u32, l: Rgb, slot: &mut Slot<()>| {
+            if is_finite(l) {
+                slot.film.add(x as usize, y as usize, l);
+            } else {
+                slot.counters.nonfinite_dropped += 1;
+            }
+        };
+        let camera_ray =
+            |x: u32, y: u32, u: [f32; 2]| scene.camera.ray_through(Vec2::new(x as f32 + u[0], y as f32 + u[1]));
+        if self.settings.sampler != SamplerKind::Sobol {
+            let (run, _) = render.run(
+                |_| (),
+                |x, y, sampler, slot| {
+                    let mut rng = sampler.stream(0);
+                    let ray = camera_ray(x, y, rng.next_2d());
+                    let l = self.li(scene, ray, &mut rng, &mut slot.counters);
+                    record(x, y, l, slot);
+                },
+            );
+            return Ok(run);
+        }
+        // With the Sobol sampler a sample's numbers need no shared generator, so the camera rays
+        // of CAMERA_PACKET consecutive samples (one pixel's, then its neighbour's) are made first
+        // and traced as one packet, and then each path goes on from its hit, in the same order.
+        let (run, _) = render.run_tiles(
             |_| (),
-            |x, y, sampler, slot| {
-                let mut rng = sampler.stream(0);
-                let u = rng.next_2d();
-                let raster = Vec2::new(x as f32 + u[0], y as f32 + u[1]);
-                let ray = scene.camera.ray_through(raster);
-                let l = self.li(scene, ray, &mut rng, &mut slot.counters);
-                // `li` adds only finite contributions, but their sum can still overflow.
-                if is_finite(l) {
-                    slot.film.add(x as usize, y as usize, l);
-                } else {
-                    slot.counters.nonfinite_dropped += 1;
+            |samples, _, slot| {
+                let mut streams: [SobolStream; CAMERA_PACKET] = std::array::from_fn(|_| SobolStream::new(0, 0));
+                let mut pixels = [(0, 0); CAMERA_PACKET];
+                let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); CAMERA_PACKET];
+                let mut hits = [None; CAMERA_PACKET];
+                let mut order = samples.iter();
+                loop {
+                    let mut n = 0;
+                    for (x, y, index) in order.by_ref().take(CAMERA_PACKET) {
+                        streams[n] = PixelSampler::sobol_stream(samples.seed, x, y, index, 0);
+                        rays[n] = camera_ray(x, y, streams[n].next_2d());
+                        pixels[n] = (x, y);
+                        n += 1;
+                    }
+                    if n == 0 {
+                        break;
+                    }
+                    scene.hits_coherent(&rays[..n], &mut hits[..n]);
+                    for k in 0..n {
+                        let l = self.li_from_hit(scene, rays[k], hits[k], &mut streams[k], &mut slot.counters);
+                        record(pixels[k].0, pixels[k].1, l, slot);
+                    }
                 }
             },
         );

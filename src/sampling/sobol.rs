@@ -48,6 +48,11 @@ pub enum SamplerKind {
     Sobol,
 }
 
+/// The key of pixel (x, y)'s Sobol sequences under the render seed `seed`.
+fn sobol_pixel_key(seed: u64, x: u32, y: u32) -> u64 {
+    splitmix64(splitmix64(seed ^ 0x5851_F42D_4C95_7F2D) ^ (((y as u64) << 32) | x as u64))
+}
+
 /// The uniforms of one sample of one pixel: hands out a stream per subpath.
 pub struct PixelSampler<'a> {
     kind: SamplerKind,
@@ -63,11 +68,16 @@ impl<'a> PixelSampler<'a> {
     pub fn new(kind: SamplerKind, rng: &'a mut Rng, seed: u64, x: u32, y: u32, index: u64) -> PixelSampler<'a> {
         let key = match kind {
             SamplerKind::Independent => 0,
-            SamplerKind::Sobol => {
-                splitmix64(splitmix64(seed ^ 0x5851_F42D_4C95_7F2D) ^ (((y as u64) << 32) | x as u64))
-            }
+            SamplerKind::Sobol => sobol_pixel_key(seed, x, y),
         };
         PixelSampler { kind, rng, key, index }
+    }
+
+    /// Stream `k` of sample `index` of pixel (x, y) under the Sobol sampler, owned: the numbers
+    /// `PixelSampler::new(SamplerKind::Sobol, ..).stream(k)` gives, for a caller that holds
+    /// several samples' streams at once (they need no `Rng`).
+    pub fn sobol_stream(seed: u64, x: u32, y: u32, index: u64, k: u32) -> SobolStream {
+        SobolStream::of_sequence(sobol_pixel_key(seed, x, y), k, index)
     }
 
     /// Stream `k` of this sample (pt reads 0; BDPT's camera, light and connection subpaths 0, 1,

@@ -144,6 +144,20 @@ impl Scene {
     #[inline]
     pub fn hit(&self, ray: &Ray) -> Option<Hit> {
         let hit = self.accel.intersect(ray)?;
+        self.prefetch_hit(&hit);
+        Some(hit)
+    }
+    /// The accelerator's closest hits of `rays`, which start close together and point about the
+    /// same way (a camera's rays through neighbouring pixels), traced together where it has
+    /// packet queries (`Accel::intersect_coherent`, whose rounding may differ from single queries'
+    /// on rare rays): `hits[i]` is as `hit(&rays[i])`, but without its cache hint, which a caller gives with [`Self::prefetch_hit`] just before it
+    /// uses `hits[i]` (the hints of eight paths given at once would be stale by the last ones).
+    pub fn hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        self.accel.intersect_coherent(rays, hits);
+    }
+    /// What [`Self::hit`] asks the cache for once the hit is known.
+    #[inline(always)]
+    pub fn prefetch_hit(&self, hit: &Hit) {
         if let Some(mesh) = self.meshes.get(hit.geom_id as usize) {
             match self.kept_corners(hit.geom_id, hit.prim_id) {
                 Some([first, _, last]) => {
@@ -157,7 +171,6 @@ impl Scene {
                 None => mesh.prefetch_indices(hit.prim_id),
             }
         }
-        Some(hit)
     }
     /// Starts loading the vertex data of `hit`'s triangle (a hint, as `Scene::hit`'s): nothing
     /// more for a mesh with corner copies and no normals or uvs.

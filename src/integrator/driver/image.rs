@@ -9,7 +9,7 @@ use super::MIN_SAMPLES_PER_PASS;
 use super::{CheckpointHook, Clock, Driver, PassBoundary, PassSet, Passes, RunStart, Slot, WallClock};
 use crate::film::Accumulator;
 use crate::integrator::{Budget, Progress, RenderError, RenderJob, RenderOutput};
-use crate::sampling::{PixelSampler, SamplerKind};
+use crate::sampling::{PixelSampler, Rng, SamplerKind};
 use crate::state::{RenderState, Session, StateError};
 use crate::stats::Counters;
 
@@ -32,6 +32,25 @@ impl Tile {
     /// The tile's pixels in row-major order.
     pub fn pixels(&self) -> impl Iterator<Item = (u32, u32)> + '_ {
         (self.y0..self.y1).flat_map(move |y| (self.x0..self.x1).map(move |x| (x, y)))
+    }
+}
+
+/// The samples of one tile in one pass: sample `s` of pixel (x, y) is point `first + s` of the
+/// pixel's sequence, for s below `spp`; `kind` and `seed` make its sampler
+/// (`PixelSampler::new`).
+pub struct TileSamples<'a> {
+    pub tile: &'a Tile,
+    pub first: u64,
+    pub spp: u64,
+    pub kind: SamplerKind,
+    pub seed: u64,
+}
+
+impl TileSamples<'_> {
+    /// (x, y, index in the pixel's sequence) of every sample, in the order the film takes them:
+    /// the tile's pixels in row-major order, a pixel's samples in a row.
+    pub fn iter(&self) -> impl Iterator<Item = (u32, u32, u64)> + '_ {
+        self.tile.pixels().flat_map(move |(x, y)| (self.first..self.first + self.spp).map(move |i| (x, y, i)))
     }
 }
 
@@ -339,6 +358,24 @@ impl<'a> ImageRender<'a> {
         S: Send + Sync,
         K: Fn(u32, u32, &mut PixelSampler<'_>, &mut Slot<S>) + Sync,
     {
+        self.run_tiles(init_slot, |samples, rng, slot| {
+            for (x, y, index) in samples.iter() {
+                let mut sampler = PixelSampler::new(samples.kind, rng, samples.seed, x, y, index);
+                sample(x, y, &mut sampler, slot);
+            }
+        })
+    }
+
+    /// [`Self::run`] with the kernel handed a tile's samples of a pass at once
+    /// ([`TileSamples`], in `run`'s order) and the work item's random stream (what an
+    /// independent sampler draws from), so that it can take several samples' first steps together
+    /// (pt traces a tile's camera rays in packets). Every sample must still add its own
+    /// contributions, in the order of [`TileSamples::iter`], for the film to be `run`'s.
+    pub fn run_tiles<S, K>(&self, init_slot: impl Fn(usize) -> S, kernel: K) -> (ImageRun, Vec<S>)
+    where
+        S: Send + Sync,
+        K: Fn(&TileSamples<'_>, &mut Rng, &mut Slot<S>) + Sync,
+    {
         let plan = &self.plan;
         let set = self.passes;
         let kind = self.sampler;
@@ -380,12 +417,7 @@ impl<'a> ImageRender<'a> {
                 // budget's last is full, so these are the indices 0, 1, … of the render's samples.
                 let first = item.pass * plan.spp_per_pass;
                 let mut rng = item.rng();
-                for (x, y) in tile.pixels() {
-                    for s in 0..spp {
-                        let mut sampler = PixelSampler::new(kind, &mut rng, item.seed, x, y, first + s);
-                        sample(x, y, &mut sampler, slot);
-                    }
-                }
+                kernel(&TileSamples { tile, first, spp, kind, seed: item.seed }, &mut rng, slot);
                 let samples = spp * tile.pixel_count();
                 slot.counters.samples += samples;
                 samples
