@@ -200,8 +200,9 @@ fn embree_and_bvh_give_the_same_image() {
     }
 }
 
-/// pt traces each tile's camera rays in packets of eight (with the Sobol sampler) and continues
-/// every path from its packet's hit; the image must be what one path per sample from a single-ray
+/// pt traces each tile's camera rays in packets of eight and continues every path from its
+/// packet's hit (with either sampler; this test uses the default Sobol one, whose per-sample
+/// streams let it compute the single-ray render independently); the image must be what one path per sample from a single-ray
 /// camera query gives (`PathTracer::li` on the sample's own Sobol stream, summed in the film's
 /// order). On the Cornell box Embree's packet and single-ray kernels find the same hits, so the
 /// pixels are equal bit for bit; a packet kernel may round a hit differently on other scenes

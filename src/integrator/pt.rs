@@ -651,24 +651,15 @@ impl PathTracer {
         };
         let camera_ray =
             |x: u32, y: u32, u: [f32; 2]| scene.camera.ray_through(Vec2::new(x as f32 + u[0], y as f32 + u[1]));
-        if self.settings.sampler != SamplerKind::Sobol {
-            let (run, _) = render.run(
-                |_| (),
-                |x, y, sampler, slot| {
-                    let mut rng = sampler.stream(0);
-                    let ray = camera_ray(x, y, rng.next_2d());
-                    let l = self.li(scene, ray, &mut rng, &mut slot.counters);
-                    record(x, y, l, slot);
-                },
-            );
-            return Ok(run);
-        }
-        // With the Sobol sampler a sample's numbers need no shared generator, so the camera rays
-        // of CAMERA_PACKET consecutive samples (one pixel's, then its neighbour's) are made first
-        // and traced as one packet, and then each path goes on from its hit, in the same order.
+        // The camera rays of CAMERA_PACKET consecutive samples (one pixel's, then its
+        // neighbour's) are made first and traced as one packet, and then each path goes on from
+        // its hit, in the same order. A Sobol sample's numbers are its own stream's; the
+        // independent sampler's come from the work item's generator, the packet's eight camera
+        // positions first and then each path's numbers.
+        let sobol = self.settings.sampler == SamplerKind::Sobol;
         let (run, _) = render.run_tiles(
             |_| (),
-            |samples, _, slot| {
+            |samples, rng, slot| {
                 let mut streams: [SobolStream; CAMERA_PACKET] = std::array::from_fn(|_| SobolStream::new(0, 0));
                 let mut pixels = [(0, 0); CAMERA_PACKET];
                 let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); CAMERA_PACKET];
@@ -677,8 +668,13 @@ impl PathTracer {
                 loop {
                     let mut n = 0;
                     for (x, y, index) in order.by_ref().take(CAMERA_PACKET) {
-                        streams[n] = PixelSampler::sobol_stream(samples.seed, x, y, index, 0);
-                        rays[n] = camera_ray(x, y, streams[n].next_2d());
+                        let u = if sobol {
+                            streams[n] = PixelSampler::sobol_stream(samples.seed, x, y, index, 0);
+                            streams[n].next_2d()
+                        } else {
+                            rng.next_2d()
+                        };
+                        rays[n] = camera_ray(x, y, u);
                         pixels[n] = (x, y);
                         n += 1;
                     }
@@ -687,7 +683,12 @@ impl PathTracer {
                     }
                     scene.hits_coherent(&rays[..n], &mut hits[..n]);
                     for k in 0..n {
-                        let l = self.li_from_hit(scene, rays[k], hits[k], &mut streams[k], &mut slot.counters);
+                        let counters = &mut slot.counters;
+                        let l = if sobol {
+                            self.li_from_hit(scene, rays[k], hits[k], &mut streams[k], counters)
+                        } else {
+                            self.li_from_hit(scene, rays[k], hits[k], rng, counters)
+                        };
                         record(pixels[k].0, pixels[k].1, l, slot);
                     }
                 }
