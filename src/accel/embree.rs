@@ -482,9 +482,10 @@ impl CommittedScene {
     /// Closest hits of up to [`PACKET_WIDTH`] rays that start close together and point the same
     /// way (a camera's rays through neighbouring pixels), traced as one packet with Embree's
     /// coherent flag: `hits[i]` for `rays[i]`, what [`Self::intersect`] returns for it up to the
-    /// packet kernel's rounding (`packets_find_the_single_rays_hits`). Embree traverses the tree once for the packet, so where the rays visit the same nodes this
-    /// costs well under eight single queries (camera rays on the door: 35 against 15 Mrays per
-    /// CPU second, docs/bench.md, session 18).
+    /// packet kernel's rounding (`packets_find_the_single_rays_hits`). Embree traverses the tree
+    /// once for the packet, so where the rays visit the same nodes this costs well under eight
+    /// single queries (camera rays on the door: 35 against 15 Mrays per CPU second, docs/bench.md,
+    /// session 18).
     ///
     /// # Panics
     /// If `rays` holds more than [`PACKET_WIDTH`] rays or `hits` is shorter than `rays`.
@@ -657,9 +658,9 @@ mod tests {
     /// triangles in three layers, seen by camera-like rays (one origin, a jittered grid of
     /// directions, some missing everything), traced in packets of every width from 1 to 8 with
     /// their `t_min`/`t_max` varied. Same triangle or the same miss for every ray; t and the
-    /// barycentrics within 1e-5 (Embree's packet kernels may round a few ulps differently; on
-    /// the scenes rendered in session 23 a handful of 3.7 million camera rays found another
-    /// triangle, none here). A packet whose results went to the wrong lanes (checked: lanes
+    /// barycentrics within 1e-5 (Embree's packet kernels may round a few ulps differently; a
+    /// 4-spp render of the living room in session 23 traced 6 of its 9.1 million rays
+    /// differently through them, none differ here). A packet whose results went to the wrong lanes (checked: lanes
     /// reversed) fails at once.
     #[test]
     fn packets_find_the_single_rays_hits() {

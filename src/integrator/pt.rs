@@ -12,7 +12,10 @@
 //! probability `rr_scale` times its throughput, refraction's 1/η² undone (`roulette_survival`).
 //!
 //! All randomness comes from the work item's stream in a fixed order that depends only on the hits,
-//! and hit points come from barycentrics, so Embree and the in-house BVH give the same image.
+//! and hit points come from barycentrics, so Embree and the in-house BVH give the same image (up to
+//! the last bits of their triangle tests). The camera rays of eight consecutive samples of a tile
+//! are traced together (`Scene::hits_coherent`, Embree's packets) before their paths go on one by
+//! one, in the film's order.
 
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
