@@ -15,8 +15,9 @@ use crate::geometry::{gamma, TriangleMesh};
 
 /// A rectangle: `corner` plus `[0, width] × [0, height]` along the orthonormal axes `x`, `y`;
 /// `x × y` is the emitting side's normal. Made by [`Rectangle::new`], which derives the normal,
-/// centre and diagonal once (every field is private, so none can change and leave them stale): the path tracer asks for them at every light sample (recomputing the
-/// centre and the diagonal's `hypot` there cost 5% of the door's CPU time).
+/// centre and diagonal once (every field is private, so none can change and leave them stale):
+/// the path tracer asks for them at every light sample (recomputing the centre and the diagonal's
+/// `hypot` there cost 5% of the door's CPU time).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rectangle {
     corner: Vec3,
