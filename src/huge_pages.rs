@@ -48,7 +48,7 @@ pub(crate) fn advise_huge_pages<T>(v: &Vec<T>) {
 /// (a larger array is not copied: the 10M-triangle scene's load would hold both copies at once).
 /// A `Vec` rather than a [`HugeArray`]: the meshes' arrays are read through slices in the path
 /// tracer's innermost loop, where `HugeArray`'s two storages cost a branch per access and enough
-/// code to change the inliner's choices (the door's pt 8% slower, docs/bench.md).
+/// code to change the inliner's choices (the door's pt 8% slower, docs/lab/performance.md).
 pub(crate) fn on_huge_pages<T: Copy>(mut v: Vec<T>, spare: usize) -> Vec<T> {
     if !(HUGE_PAGE_MIN_BYTES..=HUGE_PAGE_ARRAY_BYTES).contains(&std::mem::size_of_val(&v[..])) {
         v.reserve_exact(spare);

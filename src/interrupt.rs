@@ -1,4 +1,4 @@
-//! Ctrl-C and SIGTERM (issue 19). The first signal sets [`stop_flag`], which the driver checks at
+//! Ctrl-C and SIGTERM. The first signal sets [`stop_flag`], which the driver checks at
 //! pass boundaries: the render finishes its pass, and the command line writes the image, the JSON
 //! and a checkpoint before exiting with 130. A second signal exits with 130 without writing
 //! anything more, and leaves no temporary file behind: every output is written by

@@ -1,6 +1,6 @@
 //! plexus: a physically based renderer for difficult light transport.
 //!
-//! See DESIGN.md (shared) and README.md for the architecture. Module boundaries: `accel` answers
+//! See docs/architecture.md for the architecture. Module boundaries: `accel` answers
 //! ray queries (Embree or the in-house BVH), `geometry` holds rays and hits, `sampling` holds every
 //! warp with its pdf and inverse, `scene` parses and builds scenes, `camera`/`material`/`light`
 //! sample and evaluate, `film` accumulates and writes images, `integrator` holds light transport,

@@ -103,12 +103,12 @@ unsafe extern "C" fn memory_callback(user_ptr: *mut c_void, bytes: isize, _post:
 }
 
 /// Whether the kernel may back the process's new memory with transparent huge pages while Embree
-/// builds. Embree asks for them (`madvise(MADV_HUGEPAGE)`) for every array it allocates; the
-/// first touch of a huge page zeroes 2 MB at once, which in a virtual machine whose free memory
-/// the host has reclaimed costs about 3 s per GB against 0.7 s in 4 kB pages (measured here,
-/// docs/bench.md "Session 11"). The build's largest temporary, its primitive array (32 bytes a
-/// triangle, filled once before the tree is built), gains nothing from huge pages: while a
-/// commit is armed, an allocation of at least `threshold` bytes turns them off for the process
+/// builds. Embree asks for them (`madvise(MADV_HUGEPAGE)`) for every array it allocates; the first
+/// touch of a huge page zeroes 2 MB at once, which in a virtual machine whose free memory the host
+/// has reclaimed costs about 3 s per GB against 0.7 s in 4 kB pages (measured on the 2-core KVM
+/// guest: docs/lab/performance.md). The build's largest temporary, its primitive array (32 bytes a
+/// triangle, filled once before the tree is built), gains nothing from huge pages: while a commit
+/// is armed, an allocation of at least `threshold` bytes turns them off for the process
 /// (`PR_SET_THP_DISABLE`, which the kernel checks at each page fault), and the next smaller one
 /// (the tree's nodes and leaves, which rays traverse and which keep their huge pages) turns them
 /// back on. The commit turns them back on in any case when it returns. Only the speed of page
@@ -420,7 +420,7 @@ impl CommittedScene {
     /// `ray` read one by one. Both halves are about store-to-load forwarding: the caller has just
     /// built `ray` with scalar stores, and LLVM merged the plain field reads into 8- and 16-byte
     /// loads that straddle them (a failed forward costs about a dozen cycles: 44% of this
-    /// wrapper's samples in `perf annotate`, session 10); and Embree loads the origin and the
+    /// wrapper's samples in `perf annotate` without it); and Embree loads the origin and the
     /// direction as 16-byte vectors, which straddled our separate stores of `org_x` and
     /// `org_y..tnear` the same way. Volatile reads are never merged.
     ///
@@ -484,8 +484,8 @@ impl CommittedScene {
     /// coherent flag: `hits[i]` for `rays[i]`, what [`Self::intersect`] returns for it up to the
     /// packet kernel's rounding (`packets_find_the_single_rays_hits`). Embree traverses the tree
     /// once for the packet, so where the rays visit the same nodes this costs well under eight
-    /// single queries (camera rays on the door: 35 against 15 Mrays per CPU second, docs/bench.md,
-    /// session 18).
+    /// single queries (camera rays on the door: 35 against 15 Mrays per CPU second;
+    /// docs/lab/performance.md).
     ///
     /// # Panics
     /// If `rays` holds more than [`PACKET_WIDTH`] rays or `hits` is shorter than `rays`.
@@ -660,8 +660,8 @@ mod tests {
     /// their `t_min`/`t_max` varied. Same triangle or the same miss for every ray (the triangles
     /// share no vertices, so no ray ties between two); t and the barycentrics within 1e-5,
     /// about 40 ulps of t (2.3–4.5 here) and 80 of a barycentric near 0.5: room for another
-    /// ISA's packet kernel to round differently (a 4-spp render of the living room in session 23
-    /// traced 6 of its 9.1 million rays differently through them), while a hit given to the wrong
+    /// ISA's packet kernel to round differently (a 4-spp render of the living room traces 6 of
+    /// its 9.1 million rays differently through them), while a hit given to the wrong
     /// ray is off by the layers' spacing (0.7) or another triangle's id. Measured on the AVX-512
     /// machine: all 1,158 hits bit for bit equal. A packet whose results went to the wrong lanes (checked: lanes
     /// reversed) fails at once.

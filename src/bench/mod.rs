@@ -7,7 +7,8 @@
 //! recorded once (traced with Embree) so that every accelerator traces the identical set. A bare
 //! loop over Embree's `rtcIntersect1` (through the concrete, inlined wrapper rather than `dyn
 //! Accel`) on the same rays measures what the trait object costs. Every timing is the median of
-//! several repetitions. docs/bench.md explains the output and shows measured figures.
+//! several repetitions. docs/bench.md explains the output; docs/lab/performance.md holds dated
+//! measurements.
 //!
 //! The scene is in `workload`, process timing in `timing`; `run` measures and reports progress as
 //! [`BenchEvent`]s, and the CLI (`cli::bench`) turns events and the report into text and Markdown.
@@ -103,8 +104,8 @@ pub struct PtRow {
     /// CPU-second) in passes interleaved with the renders: one pass after each render.
     pub bare_loop_mrays_per_s: f64,
     pub bare_loop_mrays_per_cpu_s: f64,
-    /// `mrays_per_s` over `bare_loop_mrays_per_s` (issue 20's target ≥ 0.85), and the same ratio
-    /// per CPU-second.
+    /// `mrays_per_s` over `bare_loop_mrays_per_s` (the path tracer's target: at least 0.85), and
+    /// the same ratio per CPU-second.
     pub ratio_to_bare_loop: f64,
     pub ratio_to_bare_loop_cpu: f64,
 }
@@ -244,8 +245,8 @@ struct PtMeasurement {
 /// `threads` threads, `reps` times, each render followed by one pass of the bare Embree loop
 /// (`bare`) over `bounce_rays` on `pool`: the ratio of the two then compares runs that saw the
 /// same load. Measured apart (all the accelerators first, then the path tracer), the ratio moved
-/// with the machine's drift: on the 2-core VM the bare loop's rate alone ranged over ±8% between
-/// runs of one binary (issue 20, session 22).
+/// with the machine's drift: on the 2-core VM the bare loop's rate alone ranges over ±8% between
+/// runs of one binary.
 #[allow(clippy::too_many_arguments)]
 fn measure_path_tracer(
     scene: &Scene,
@@ -314,8 +315,8 @@ pub fn run(
     let bounce_rays =
         thread_pool(max_threads)?.install(|| scene.bounce_rays(&reference, &camera_rays, opts.bounces, opts.seed));
     // Embree's task scheduler runs on as many threads as the most any live device asks for: with
-    // this device (no thread limit) still alive, a device made with `threads=1` built on every core
-    // (session 10 measured 0.76 CPU s in 0.41 s of wall time for the "1-thread" build). Dropped
+    // this device (no thread limit) still alive, a device made with `threads=1` builds on every
+    // core (0.76 CPU s in 0.41 s of wall time for the "1-thread" build). Dropped
     // here, so that each measured device is the only one and its `threads=` holds.
     drop(reference);
     on_event(BenchEvent::RaysRecorded { camera: camera_rays.len(), bounce: bounce_rays.len(), bounces: opts.bounces })?;

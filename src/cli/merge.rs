@@ -1,4 +1,4 @@
-//! `plexus merge SHARD.pxstate... --out IMAGE.exr`: combines the shards of one render (issue 21)
+//! `plexus merge SHARD.pxstate... --out IMAGE.exr`: combines the shards of one render
 //! into its image and JSON (and, for a `.pxstate` output, its state). Shards of different scenes,
 //! plexus versions, settings, seeds, budgets or resolutions, overlapping or missing shards are
 //! refused with one line (exit 2); no scene is loaded.

@@ -3,7 +3,7 @@
 //! build.rs compiles the shim into a shared library linked to OpenImageIO, and plexus carries its
 //! bytes. Linking OpenImageIO into plexus itself would make every process load Debian's
 //! `libOpenImageIO` and the ~260 libraries it pulls in (codecs, gdcm, ffmpeg, ...) before `main`:
-//! 0.22 s and 130 MB resident, measured on an empty C program (docs/bench.md, session 20), for a
+//! 0.22 s and 130 MB resident, measured on an empty C program (docs/lab/performance.md), for a
 //! `--version` or a render that writes only EXR as much as for one that reads JPEG textures. Now
 //! only a process that reads a bitmap or writes another format than EXR pays it, once.
 //!

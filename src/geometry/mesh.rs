@@ -26,9 +26,9 @@ pub enum MeshError {
 /// The cross product of a triangle's edges, in f64. Its components scale as the square of the
 /// triangle's size and its squared length as the fourth power: in f32 the squared length
 /// overflows for edges beyond about 4e9 and is flushed to zero (Embree's threads run with
-/// flush-to-zero) below about 1e-10, which once turned every normal of a scene modelled in
-/// kilometres-as-millimetres into `Vec3::Z` and rendered it at a sixth of its brightness
-/// (issue 19). In f64 both powers stay in range for every f32 coordinate.
+/// flush-to-zero) below about 1e-10, which turns every normal of a scene modelled in
+/// kilometres-as-millimetres into `Vec3::Z` and renders it at a sixth of its brightness. In f64
+/// both powers stay in range for every f32 coordinate.
 #[inline]
 fn edge_cross(a: Vec3, b: Vec3, c: Vec3) -> glam::DVec3 {
     (b - a).as_dvec3().cross((c - a).as_dvec3())

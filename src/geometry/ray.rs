@@ -92,7 +92,7 @@ impl Aabb {
 ///
 /// Branch-free: the signs of the offset's components are those of a random direction's, so the
 /// three "up, down or neither" branches of the textbook form were mispredicted about half the
-/// time (5–9% of the path tracer's profile on the Cornell box, session 10). The result is bit for
+/// time (5–9% of the path tracer's profile on the Cornell box). The result is bit for
 /// bit the textbook form's (`next_float_up`/`next_float_down`, kept with the tests that compare them).
 #[inline(always)]
 pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {

@@ -1,4 +1,5 @@
-//! Sources of uniform numbers for code that takes its randomness explicitly (STYLE.md pattern 1):
+//! Sources of uniform numbers for code that takes its randomness explicitly (every sampling
+//! routine takes its uniforms as arguments, docs/architecture.md "Sampling"):
 //! one trait that independent sampling (`Rng`), a prescribed list (`ReplaySampler`) and Markov
 //! chains over primary samples (`integrator::pss::PssSampler`) all implement, so the same subpath
 //! code runs under each. A source reads one stream in order; which coordinate means what (the

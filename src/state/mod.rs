@@ -1,9 +1,9 @@
 //! Render state files (`.pxstate`): checkpoints, interrupted renders and shards are one kind of
-//! file (issues 19 and 21, `../shared/DESIGN.md` "Determinism, and the render model everything
-//! shares"). A state is what the driver's [`PassBoundary`](crate::integrator::driver::PassBoundary)
-//! names: the schedule position, the film's unnormalised sums, the units' states (a chain's
-//! sampler, current path and large-step totals), the slots' counters and statistics merged — plus
-//! the header that says which render it belongs to.
+//! file (docs/architecture.md, "The render model"). A state is what the driver's
+//! [`PassBoundary`](crate::integrator::driver::PassBoundary) names: the schedule position, the
+//! film's unnormalised sums, the units' states (a chain's sampler, current path and large-step
+//! totals), the slots' counters and statistics merged — plus the header that says which render it
+//! belongs to.
 //!
 //! # The file
 //!
@@ -48,7 +48,7 @@ pub use session::{Session, SessionOutput, Shard};
 /// The first bytes of every state file.
 pub const MAGIC: &[u8; 8] = b"PXSTATE\n";
 /// The layout version of the file; a reader refuses any other. 2: the MLT bootstrap's per-depth
-/// estimates carry their variances and depth 0's replicates (issue 20, session 10), so a version-1
+/// estimates carry their variances and depth 0's replicates, so a version-1
 /// MLT state would not decode; every older state is refused by version instead of as "damaged".
 pub const FORMAT_VERSION: u32 = 2;
 /// The plexus version that writes state files: a state of another version is refused (its

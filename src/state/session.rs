@@ -13,7 +13,7 @@ use crate::integrator::RenderOutput;
 
 /// Shard `index` of `count` (0-based): the render's work units dealt into `count` disjoint sets —
 /// passes p with p mod count = index for pt, BDPT and light tracing; chains c with c mod count =
-/// index for the Markov chain integrators (issue 21).
+/// index for the Markov chain integrators.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Shard {
     pub index: u64,

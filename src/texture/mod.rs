@@ -142,7 +142,7 @@ impl TexelImage {
     /// Asks the cache for the four texels `bilinear(s, t)` will read (a hint: no effect on any
     /// value). A lookup at a random hit misses the cache on most of the door's photographs; the
     /// path tracer issues this as soon as the hit's uv is known and traces a shadow ray while the
-    /// texels arrive (docs/bench.md, issue 20 session 14).
+    /// texels arrive (docs/lab/performance.md).
     #[inline(always)]
     pub fn prefetch(&self, s: f32, t: f32) {
         let (i0, i1, _) = wrapped_neighbours(s, self.width);

@@ -15,7 +15,7 @@
 //! final array are alive together: the build holds up to twice the nodes (`Bvh::build_with`
 //! counts it). The nodes array grows to what the tree
 //! needs (about one node per three leaves) instead of a worst-case preallocation, which matters for
-//! the 10M-triangle scene of issue 20.
+//! scenes of ten million triangles (`scripts/large-scene.sh`).
 
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
@@ -48,7 +48,7 @@ pub(super) const EMPTY: u32 = u32::MAX;
 
 /// Children per node. Eight, as Embree's BVH8: one AVX visit tests all eight boxes
 /// (`triangle::slab8`), and the tree is about half as deep as a 4-wide one, so a ray makes about
-/// half the dependent node loads (measured against 4-wide in docs/bench.md, session 10).
+/// half the dependent node loads (measured against a 4-wide tree: docs/lab/performance.md).
 pub(super) const WIDTH: usize = 8;
 
 /// An 8-wide node: 256 bytes, four cache lines, laid out for testing the eight boxes at once.
@@ -119,7 +119,7 @@ fn packets(n: usize) -> f32 {
 }
 
 impl Default for BuildParams {
-    /// Measured on the benchmark scene (docs/bench.md).
+    /// Chosen by measurement on the `plexus bench` scene (docs/lab/performance.md).
     fn default() -> Self {
         BuildParams { max_leaf: 8, traversal_cost: 1.0, parallel_split_prims: 2 * 1024 * 1024 }
     }
@@ -153,12 +153,12 @@ fn partition(prims: &mut [BuildPrim], binner: &Binner, axis: usize, bin: usize) 
 /// `partition` on axis `AXIS` (a constant, so that the side test reads its lane directly).
 /// Hoare's scheme: the left end advances over primitives that stay left, the right end over those
 /// that stay right, and only a pair that is on the wrong sides is swapped, so each primitive is read
-/// once and at most the misplaced ones are written (the scheme before swapped every right one,
-/// reversing runs that were already in place). The bounds grow in SIMD vectors over the sums `min + max` and are halved at
+/// once and at most the misplaced ones are written (runs already in place are not reversed by
+/// swaps). The bounds grow in SIMD vectors over the sums `min + max` and are halved at
 /// the end: halving is monotonic, so the halved extremes are the extremes of the halved sums, the
 /// centroids, exactly (a NaN sum leaves a bound as it was, as `Aabb::grow`).
-/// (A branch-free variant, Lomuto's scheme with an unconditional swap, measured 4% slower on the
-/// whole build, session 11.)
+/// (Lomuto's branch-free scheme with an unconditional swap measured 4% slower on the whole
+/// build: docs/lab/performance.md.)
 fn partition_on<const AXIS: usize>(prims: &mut [BuildPrim], binner: &Binner, bin: usize) -> (usize, Aabb, Aabb) {
     // The centroid's corner sum and whether the centroid goes left.
     let side = |p: &BuildPrim| {

@@ -7,22 +7,22 @@
 //!
 //! The renderer asks for a fresh set (a fresh seed) at every path vertex, so the set's cost is a
 //! direct share of the path tracer's time: `sobol_burley::sample_4d` was 14.9% of pt's CPU time
-//! on the Cornell box and 13.4% on the door (perf, issue 20, session 10). The crate is general
+//! on the Cornell box and 13.4% on the door (`perf record`). The crate is general
 //! (256 dimensions, any set): its Sobol product walks the index's set bits one by one (a loop of
 //! unpredictable length) and it is built for baseline x86-64, where its four-lane multiplies are
 //! emulated. Here the set is always dimension set 0 and the index has 16 bits, so the Sobol
 //! matrix–vector product is two lookups in 256-entry tables, one per byte of the index (8 KiB,
 //! L1 resident); the hashes are plain `u32` arithmetic, compiled also for SSE4.1 (chosen at run
 //! time), and two sets are computed per call so their dependency chains overlap; with AVX2 (also
-//! chosen at run time) the two sets share one chain of eight-lane operations (session 14).
+//! chosen at run time) the two sets share one chain of eight-lane operations.
 //!
 //! Measured (thread CPU time, medians of 15 interleaved rounds of 2^20 sets, load 8–13 on the
-//! 2-core machine; [`tests::sobol_set_cost`]): 36.5 ns per set for the crate against 11.1 ns
-//! here (3.3×) when sets are independent, 45.2 against 15.5 ns (2.9×) when each pair's seed
-//! waits for the previous numbers. In the render the sets' share fell to 7.2% (Cornell box) and
-//! 6.0% (door), about 2.2× less time; the images are bit for bit the same. docs/sampling.md,
-//! "The Sobol sets' cost", has the commands and the whole-render figures. That is the reason
-//! this module exists beside a maintained crate that computes the same numbers.
+//! 2-core machine; [`tests::sobol_set_cost`]): 36.5 ns per set for the crate against 11.1 ns here
+//! (3.3×) when sets are independent, 45.2 against 15.5 ns (2.9×) when each pair's seed waits for
+//! the previous numbers. In the render the sets' share is 7.2% (Cornell box) and 6.0% (door) with
+//! this module, about 2.2× less time; the images are bit for bit the same. docs/lab/sampling.md,
+//! "The Sobol sets' cost", has the commands and the whole-render figures. That is the reason this
+//! module exists beside a maintained crate that computes the same numbers.
 //!
 //! The crate stays as the test oracle (a dev-dependency): every index of 16 seeds must give the
 //! crate's bits, and the stream must read the crate's sets in the same places.

@@ -1,10 +1,10 @@
 //! Mitsuba scene import: Mitsuba 0.5/0.6 and Mitsuba 3 XML turned into the plexus scene format.
 //!
 //! The importer writes TOML and the ordinary loader reads it, so that a Mitsuba scene becomes the
-//! same `SceneDesc` a hand-written file would (DESIGN.md "Scenes users bring": a feature exists
-//! once). What plexus cannot represent is mapped to the nearest model with a warning naming the
-//! file, the line and the choice made; nothing is dropped silently: every parameter the importer
-//! did not use is reported by name and line. Missing mesh and texture files are errors naming them.
+//! same `SceneDesc` a hand-written file would (a feature exists once: in the loader). What plexus
+//! cannot represent is mapped to the nearest model with a warning naming the file, the line and the
+//! choice made; nothing is dropped silently: every parameter the importer did not use is reported
+//! by name and line. Missing mesh and texture files are errors naming them.
 //!
 //! `xml` reads the files (includes, defaults, line numbers), `objects` resolves plugins and refs,
 //! `scene` converts sensor, shapes, emitters and integrator, `bsdf` materials and textures,
