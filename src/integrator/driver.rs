@@ -21,7 +21,7 @@
 //! film can be merged with another, resumed, or shown at any pass boundary without undoing a scale.
 //!
 //! A **pass boundary** is where a render can stop, save and resume (interrupts, checkpoints and
-//! shards, issues 19 and 21, build on it). Everything the rest of the render depends on is then in
+//! shards build on it). Everything the rest of the render depends on is then in
 //! a [`PassBoundary`]: the passes done, the film's sums, the units' states (a chain's sampler and
 //! current path) and the slots' counters and per-slot states. With the scene, the job and the
 //! integrator's settings, that is what a checkpoint must save; the next pass is `passes_done` for
@@ -197,7 +197,7 @@ pub type Snapshot<'a, U, S> = dyn Fn(&PassBoundary<'_, U, S>) -> Image + 'a;
 pub type CheckpointHook<'a, U, S> = dyn Fn(&PassBoundary<'_, U, S>) + 'a;
 
 /// What can end a run before its budget, and how often it offers checkpoints: both only at pass
-/// boundaries, so what is saved is a state the render model can resume from (issue 19).
+/// boundaries, so what is saved is a state the render model can resume from.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RunControl<'a> {
     /// Set (by a signal handler) to stop at the next pass boundary.
@@ -216,8 +216,8 @@ impl RunControl<'_> {
     }
 }
 
-/// Which passes of the schedule a run renders: pass p when p mod `count` = `index` (issue 21:
-/// the pass shards of pt, BDPT and light tracing); every pass by default.
+/// Which passes of the schedule a run renders: pass p when p mod `count` = `index` (the pass
+/// shards of pt, BDPT and light tracing); every pass by default.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PassSet {
     pub index: u64,
@@ -581,8 +581,8 @@ mod tests {
     }
 
     /// Same seed: a bit-identical film for 1, 2 and 3 threads (units applied in unit order);
-    /// other seed: another film. With a film per slot merged in slot order (the old driver), the
-    /// film sums of 1 and 3 threads differed at 18 of the 35 pixels.
+    /// other seed: another film. With a film per slot merged in slot order instead (the wrong
+    /// variant), the film sums of 1 and 3 threads differ at 18 of the 35 pixels.
     #[test]
     fn splatting_run_depends_on_seed_only_not_on_threads() {
         let (a, ca, pa) = splat_run(3, 11);

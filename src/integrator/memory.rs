@@ -1,6 +1,6 @@
 //! The memory a render needs, and the memory the process may use: one estimate, computed with
 //! checked arithmetic, so that a scene, film or Markov chain setup that would not fit is refused
-//! with its size instead of aborting on allocation (issue 19). `plexus info` prints the same
+//! with its size instead of aborting on allocation. `plexus info` prints the same
 //! estimate.
 //!
 //! Its parts:

@@ -160,7 +160,7 @@ pub trait Integrator: Send + Sync {
     /// The settings in effect, for the stats report.
     fn settings_json(&self) -> serde_json::Value;
 
-    /// The one render an integrator implements (issues 19 and 21): under `session` (resumed from a
+    /// The one render an integrator implements: under `session` (resumed from a
     /// state, as a shard, stopped early, checkpointed), returning the image of everything rendered
     /// and, with `save`, the state reached (`crate::state`). `render` and `render_session` are
     /// this. An integrator that cannot save its units overrides `render` instead and keeps this

@@ -350,7 +350,7 @@ impl PathTracer {
             // The light sample needs no texel, so it is taken before the BSDF is looked up: its
             // arithmetic (the spherical rectangle's, the emitter's) then runs while the texels that
             // `prefetch_texels` asked for arrive, instead of after the lookup has waited for them
-            // (door CPU time 0.98×, issue 20 session 23). Same numbers, same image.
+            // (door CPU time 0.98× of the other order). Same numbers, same image.
             let surface_material = scene.surface_material(&si);
             let light_sample = (use_nee && !surface_material.is_specular()).then(|| {
                 let (index, pmf, point) = light_point.unwrap_or_else(|| choose_light(scene, u_light));
@@ -493,10 +493,10 @@ fn choose_light(scene: &Scene, u: [f32; 4]) -> (usize, f32, LiPoint) {
 // So each block's two-dimensional warp (the point on the light or the direction from the
 // environment; the BSDF's direction) reads lanes 0 and 1, and the discrete choices (which light,
 // which triangle, which lobe) and roulette the other two. `tests::warps_read_the_stratified_pair`
-// checks the nets. Measured against the earlier order (lanes 2–3 for the light's point, 1–2 for
-// the direction), 16 renders of 64 spp each: variance 0.996×, 0.987×, 0.994× and 0.989× on the
-// Cornell box, its glossy and glass variants and the door (standard errors 1.1–1.6%, so about 1%
-// gained, not resolved scene by scene; issue 20, session 23).
+// checks the nets. Measured against lanes 2–3 for the light's point and 1–2 for the direction,
+// 16 renders of 64 spp each: variance 0.996×, 0.987×, 0.994× and 0.989× on the Cornell box, its
+// glossy and glass variants and the door (standard errors 1.1–1.6%, so about 1% gained, not
+// resolved scene by scene; docs/lab/performance.md).
 
 /// The light sample's uniforms after the light's choice (lane 2): the triangle's (lane 3), then
 /// the point's or the environment's direction (lanes 0 and 1), as `Light::sample_li_point` reads
@@ -543,8 +543,8 @@ struct SplitVertex {
 /// The four numbers of `block` read one by one. The block has just been copied with one 16-byte
 /// store; LLVM read (u1, u2) back as one 8-byte load at offset 4, which crosses an 8-byte boundary
 /// inside that store, so the load could not be forwarded from it and waited for the store to
-/// reach the cache (perf annotate put 4–5% of the door's pt samples on the load's neighbour;
-/// the render's CPU time fell 2%, issue 20 session 18). Volatile reads are never merged, and
+/// reach the cache (perf annotate puts 4–5% of the door's pt samples on the load's neighbour;
+/// the render's CPU time is 2% lower with the reads below). Volatile reads are never merged, and
 /// 4-byte reads at 4-byte offsets are forwarded.
 #[inline(always)]
 fn read_lanes(block: &[f32; 4]) -> [f32; 4] {
@@ -779,8 +779,8 @@ mod tests {
     }
 
     /// A path whose throughput (η² undone) is ≥ 1 in some channel is never rolled: it survives
-    /// whatever the uniform. The formula before issue 12, survival = min(max βᵢ, 0.95), failed
-    /// this with q = 0.95 for β = 1.
+    /// whatever the uniform. A capped rule, survival = min(max βᵢ, 0.95), fails this with
+    /// q = 0.95 for β = 1.
     #[test]
     fn roulette_never_rolls_a_throughput_of_one_or_more() {
         for beta in [Rgb::ONE, Rgb::new(1.0, 0.2, 0.1), Rgb::new(0.0, 3.0, 0.0), Rgb::splat(40.0)] {
@@ -809,8 +809,8 @@ mod tests {
 
     /// Refracting into η = 1.5 divides the radiance throughput by 2.25; the η² the sample record
     /// reports undoes it, so a camera path that has only entered glass survives with q = 1 (the
-    /// formula before issue 12 gave q = 0.444), a diffuse bounce of albedo 0.5 inside gives q = 0.5
-    /// (before: 0.222), and leaving the glass restores both factors to 1.
+    /// rule without the η² factor gives q = 0.444), a diffuse bounce of albedo 0.5 inside gives
+    /// q = 0.5 (without it: 0.222), and leaving the glass restores both factors to 1.
     #[test]
     fn roulette_undoes_the_radiance_compression_of_refraction() {
         let glass = Material::Dielectric { ior: 1.5 };

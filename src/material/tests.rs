@@ -1,4 +1,4 @@
-//! Statistical and numerical tests of the BSDFs (issue 3): chi-square goodness of fit of `sample`
+//! Statistical and numerical tests of the BSDFs: chi-square goodness of fit of `sample`
 //! against `pdf`, discrete masses of delta lobes, round trips through `invert`, the distribution
 //! of inverted uniforms, numerical Jacobians, energy, consistency of f/pdf/sample, reciprocity and
 //! finiteness at the extremes.

@@ -1,6 +1,6 @@
-//! The f32 fast paths against what they replaced (issue 20, material cost): the combined
-//! `eval_pdf` against `eval` and `pdf`; the f32 visible-normal sampler against the f64 one it
-//! replaced; the three-lane f32 conductor Fresnel against the exact complex equations in f64.
+//! The f32 fast paths against exact references: the combined `eval_pdf` against `eval` and
+//! `pdf`; the f32 visible-normal sampler against an f64 one; the three-lane f32 conductor
+//! Fresnel against the exact complex equations in f64.
 //! Each states its bound, and the naive variant each one avoids is shown to exceed it.
 
 use glam::{DVec3, Vec3};

@@ -1,4 +1,4 @@
-//! Tests of the GGX rough dielectric (issue 18), the existing BSDFs' battery applied to a
+//! Tests of the GGX rough dielectric (Walter et al. 2007), the existing BSDFs' battery applied to a
 //! transmitting material: χ² of `sample` against `pdf` on both sides of the interface, the pdf
 //! integrating to the sampler's success probability, `invert` round trips, reciprocity in the
 //! transmission form f(wo→wi)/η_o² = f(wi→wo)/η_i², and energy with the η² radiance factor undone

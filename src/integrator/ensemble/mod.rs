@@ -14,7 +14,7 @@
 //! - `settings`, `guide`: the settings (adaptive α); Y as the guided strategies see it.
 //! - `linear`: the linear lens and linear caustic perturbations (guided, with the plain fallback).
 //! - `render`: Algorithm 1 on the driver.
-//! - `anisotropic`, `directional` (issue 17): the guided anisotropic kernel (Eq. 11–12, with its
+//! - `anisotropic`, `directional`: the guided anisotropic kernel (Eq. 11–12, with its
 //!   image-plane version) and the guided directional (vMF) kernel; `toy_anisotropic` (tests);
 //!   the strategies built on them: `anisotropic_path` and `environment`.
 pub mod anisotropic;

@@ -6,7 +6,7 @@
 //! - **Iterations** (Algorithm 1): every chain of X takes `it` = max(1, ⌊W·H/(|X| + |Y|)⌋) steps of
 //!   pmlt's Metropolis–Hastings `step` (the paper's ⌊W·H/(|X|+|Y|)⌋ is 0 for images smaller than the
 //!   ensembles) with the strategies bidirectional, linear lens, linear caustic, linear
-//!   multi-chain, anisotropic path and environment (issue 17; `EmltSettings::perturbations`
+//!   multi-chain, anisotropic path and environment (`EmltSettings::perturbations`
 //!   switches them), the guided ones
 //!   reading Y (its paths and its tree, rebuilt here at each swap, `tree`); then X and Y swap. X's
 //!   chains run in parallel on the driver as its units, Y fixed: the complementary split that

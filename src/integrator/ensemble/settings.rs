@@ -39,7 +39,7 @@ pub struct EmltSettings {
     /// c and σ² of the sigmoid weight w_α = 1/(1 + exp(−(b_res − c)/σ²)) (0.1 and 0.02).
     pub alpha_c: f64,
     pub alpha_sigma2: f64,
-    /// Selection weight of the anisotropic path perturbation (issue 17; 2, 0 turns it off).
+    /// Selection weight of the anisotropic path perturbation (2; 0 turns it off).
     pub anisotropic_path: f64,
     /// Selection weight of the environment perturbation (2; suitable only for paths that end at
     /// the environment).

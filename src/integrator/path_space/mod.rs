@@ -4,8 +4,9 @@
 //! bootstrap (`chain`); the bidirectional mutation (`bidirectional`) is its global strategy, Veach's
 //! lens, caustic and multi-chain perturbations (`lens`, `caustic`, `multichain`, with the truncated
 //! reciprocal kernels of `kernel` and the specular-chain retrace of `retrace`) its local ones, and
-//! the portal perturbation (issue 15) and the ensemble-guided kernels (issue 16) are further
-//! strategies on the same chain (`strategy`).
+//! the portal perturbation (`portal`, Otsu et al. 2022) and the ensemble-guided kernels
+//! (`integrator::ensemble`, Bashford-Rogers et al. 2021) are further strategies on the same chain
+//! (`strategy`).
 //!
 //! # State
 //! A path x̄ = x_0 … x_{n−1} is its vertex list, pinhole first and emitter last (`state`): each

@@ -1,6 +1,7 @@
 //! The perturbations' transition densities against what `propose` realises (χ²), each with the
-//! deliberately wrong variant issue 14 names (and, for the multi-chain perturbation, the caustic
-//! perturbation's: the pivot's |cos| dropped).
+//! deliberately wrong variant of its density (the lens perturbation's T with the connection
+//! edge's G, the caustic perturbation's without the pivot's |cos|, and for the multi-chain
+//! perturbation the caustic perturbation's).
 //!
 //! Bins are over the variables a proposal samples, measured back from the proposed path: for the
 //! lens perturbation of a path whose first vertex is diffuse (no specular vertex between it and the

@@ -1,5 +1,5 @@
-//! The portal perturbation (Otsu, Hanika & Dachsbacher, "Portal-based path perturbation for
-//! Metropolis light transport", Sec. 4; ../shared/papers/002_53e6a029e7118c15.txt): pivot the
+//! The portal perturbation (Otsu, Hanika & Dachsbacher 2022, "Portal-Based Path Perturbation for
+//! Metropolis Light Transport", Sec. 4; docs/bibliography.md): pivot the
 //! first path edge that crosses a portal about its crossing point, so that an edge squeezed through
 //! a small opening (a window, a hole) moves freely on both sides of it, where Veach's perturbations,
 //! which rotate about a path vertex far from the opening, are mostly occluded (Sec. 3.4, 4.1).

@@ -1,5 +1,5 @@
 //! The pmlt render: bootstrap, chains, the driver's passes and the normalised output — from the
-//! start or from a saved state, for all chains or a shard's (issues 19 and 21), as the MLT family's
+//! start or from a saved state, for all chains or a shard's, as the MLT family's
 //! (`pss/mlt/render.rs`). `Integrator::render` is this path with no session. What a state keeps of
 //! it is [`PmltPart`]: the bootstrap's sum (b, shared by every chain and the normalisation), the
 //! chains (random stream and current path with its f and f*, written through `UnitState`) and the

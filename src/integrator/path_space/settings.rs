@@ -30,7 +30,7 @@ pub struct PmltSettings {
     pub lens: f64,
     pub caustic: f64,
     pub multi_chain: f64,
-    /// Selection weight of the portal perturbation (issue 15; 2 like the other perturbations, with
+    /// Selection weight of the portal perturbation (2 like the other perturbations, with
     /// which it shares its weight; offered only at paths that cross a `[[portals]]` quad, so it
     /// costs nothing in a scene without portals; 0 turns it off).
     pub portal: f64,

@@ -1,4 +1,4 @@
-//! The strategy interface every path-space mutation implements (../shared/DESIGN.md, "The
+//! The strategy interface every path-space mutation implements (docs/architecture.md, "The
 //! path-space family"), and the set of strategies a chain chooses from.
 //!
 //! A strategy has `suitable`, `propose` and `transition` side by side: `transition(x̄, ȳ, change)`

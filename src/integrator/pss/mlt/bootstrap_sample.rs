@@ -1,13 +1,13 @@
-//! The MLT bootstrap's samples and the chains' start from them (issue 20).
+//! The MLT bootstrap's samples and the chains' start from them.
 //!
 //! **One full BDPT sample for every depth.** MMLT's b_d = ∫ f̂_d over the (ū, u_t) cube (MMLT paper
 //! Sec. 4, "Initialization", which allows estimating it "using bidirectional path tracing"). With
 //! u_t uniform, f̂_d averaged over u_t is (1/n_d)·Σ_s lum(w_{s,t} C_{s,t}(ū)) over the n_d techniques
 //! of depth d. So one BDPT sample — a camera subpath of max_depth + 2 vertices, a light subpath of
 //! max_depth + 1 and every technique (s, t) between them, each with its MIS weight — gives every
-//! depth's b_d an estimate at once, B_d = (1/n_d)·Σ_s lum(w_{s,t} C_{s,t}), where the old bootstrap
-//! spent one sample per depth on one technique (100,000 paths per depth × 17 depths at max_depth
-//! 16). Each technique of the sample sees uniform primary samples, so each B_d is unbiased.
+//! depth's b_d an estimate at once, B_d = (1/n_d)·Σ_s lum(w_{s,t} C_{s,t}), where one sample per
+//! depth on one technique would take 100,000 paths per depth × 17 depths at max_depth 16. Each
+//! technique of the sample sees uniform primary samples, so each B_d is unbiased.
 //!
 //! **Primary samples that a chain can replay.** A bootstrap sample reads its camera, light and
 //! connection numbers from streams of its own ([`BootstrapSource`]), each read from its start, and

@@ -1,22 +1,22 @@
 //! Which depth an MMLT/RJMLT iteration renders: the depth choice with its floor, the large-step
 //! totals behind it and b_d (pooled with the bootstrap's estimate by inverse variance), and the search that starts the chains of a depth the
-//! bootstrap missed (issue 12). A submodule of `mlt` so that it shares the chain types.
+//! bootstrap missed. A submodule of `mlt` so that it shares the chain types.
 
 use super::{Bootstrap, ChainUnit, Mlt, SlotState, SubChain};
 use crate::integrator::bdpt::BdptContext;
 use crate::sampling::Distribution1D;
 use crate::stats::Counters;
 
-/// Share of the depth choice spread evenly over the depths (MMLT, RJMLT), so that a depth whose
-/// b_d estimate is 0 or far too small is still visited: p(d) = (1 − ε)·b̂_d/Σb̂ + ε/D, with b̂_d
-/// the chain's estimate (`Mlt::depth_choice`). The MMLT paper (Sec. 4,
-/// "Initialization") chooses p(d) ∝ b_d and recommends progressive b as "less likely to miss rare
-/// bounces when an initial estimate of b_k is zero but b_k > 0"; but with p(d) ∝ b_d alone a depth
-/// whose bootstrap b_d is 0 never receives an iteration, so no large step of it ever refines b_d
-/// and its light is lost (issue 12: the door scene with 200 bootstrap paths lost depth 1,
-/// b ≈ 5e-4, in 3 of 4 seeds). The estimator does not depend on p(d): each depth's film is divided
-/// by the iterations that depth received (module docs, "Normalisation"), so p(d) only moves
-/// effort, and the floor costs at most ε of the iterations on depths that carry no light.
+/// Share of the depth choice spread evenly over the depths (MMLT, RJMLT), so that a depth whose b_d
+/// estimate is 0 or far too small is still visited: p(d) = (1 − ε)·b̂_d/Σb̂ + ε/D, with b̂_d the
+/// chain's estimate (`Mlt::depth_choice`). The MMLT paper (Sec. 4, "Initialization") chooses p(d) ∝
+/// b_d and recommends progressive b as "less likely to miss rare bounces when an initial estimate
+/// of b_k is zero but b_k > 0"; but with p(d) ∝ b_d alone a depth whose bootstrap b_d is 0 never
+/// receives an iteration, so no large step of it ever refines b_d and its light is lost (the door
+/// scene with 200 bootstrap paths loses depth 1, b ≈ 5e-4, in 3 of 4 seeds without the floor). The
+/// estimator does not depend on p(d): each depth's film is divided by the iterations that depth
+/// received (module docs, "Normalisation"), so p(d) only moves effort, and the floor costs at most
+/// ε of the iterations on depths that carry no light.
 const DEPTH_CHOICE_FLOOR: f64 = 0.1;
 
 /// Per depth: the sum and count of large-step targets.
@@ -33,9 +33,9 @@ const MIN_NONZERO_FOR_WEIGHTS: u64 = 32;
 /// **Pooling by inverse variance.** The bootstrap's b_d and the large steps' mean are two unbiased
 /// estimates of the same b_d, with different variances per sample: a bootstrap sample is a full
 /// BDPT sample averaging all n_d techniques, by default with Sobol numbers, a large step one
-/// technique with independent numbers. Pooled sample for sample (the rule before), the large
-/// steps, ~9× more numerous at 64 mutations per pixel, outweighed the more precise bootstrap and
-/// *raised* the image brightness's spread over seeds (the shipped Cornell box: 0.29% with the
+/// technique with independent numbers. Pooled sample for sample, the large steps, ~9× more
+/// numerous at 64 mutations per pixel, outweigh the more precise bootstrap and *raise* the image
+/// brightness's spread over seeds (the shipped Cornell box: 0.29% with the
 /// bootstrap's b alone, 0.44% MMLT and 0.88% RJMLT pooled; docs/benchmarks.md). The minimum-
 /// variance unbiased combination of two independent unbiased estimates weighs each by the inverse
 /// of its variance: b = (b_B/V_B + b_L·n/σ²_L) / (1/V_B + n/σ²_L), with V_B the variance of the
@@ -145,8 +145,8 @@ impl Mlt {
     /// the chain's own large steps so far (`own`; the MMLT paper's progressive b_k, Sec. 4
     /// "Initialization", applied to the choice as well as to the normalisation). The choice depends
     /// on the chain alone, never on other chains: a chain renders the same segments in a shard as
-    /// in the whole render (issue 21), and no pass waits for the others' totals. (The render-wide
-    /// totals it once pooled move effort a little sooner; the estimator does not depend on p(d).)
+    /// in the whole render, and no pass waits for the others' totals. (Render-wide totals would
+    /// move effort a little sooner; the estimator does not depend on p(d).)
     /// Depths that cannot be recovered (bootstrap b_d = 0 without progressive b: their image is
     /// scaled by b_d = 0) are never chosen.
     pub(super) fn depth_choice(&self, bootstrap: &Bootstrap, own: &LargeStepTotals) -> Distribution1D {
@@ -181,7 +181,7 @@ mod tests {
     }
 
     /// Inverse-variance pooling (`BEstimate::pooled`): with the bootstrap's per-sample variance
-    /// equal to a large step's it is the old pooling by sample counts; a bootstrap 100× more
+    /// equal to a large step's it is pooling by sample counts; a bootstrap 100× more
     /// precise than the large steps together gets weight 100/101, where pooling by counts would
     /// give the 900,000 large steps 90% of the weight (the wrong variant: 1.0 + 0.9·(1.1 − 1.0)
     /// = 1.09 here against 1.00099); without enough non-zero samples to trust a variance, or

@@ -1,5 +1,5 @@
 //! The MLT render: bootstrap, chains, the driver's passes and the normalised output — from the
-//! start or from a saved state, for all chains or a shard's (issues 19 and 21). What a state keeps
+//! start or from a saved state, for all chains or a shard's. What a state keeps
 //! of it is [`MltPart`]: the bootstrap every chain and the normalisation share, the chains
 //! themselves (sampler, current path, random stream, large-step totals) and the slots' statistics
 //! merged, whose per-depth iteration counts the normalisation divides by.
