@@ -398,3 +398,67 @@ fn bench_prints_progress_tables_and_json() {
     assert_eq!(json["rows"].as_array().map(Vec::len), Some(3));
     assert_eq!(json["path_tracer"][0]["threads"], 1);
 }
+
+/// A Mitsuba scene: a floor under a rectangle light, seen from above, with an integrator plexus
+/// substitutes (the import warning every scene verb must print, with the file's line).
+const MITSUBA_SCENE: &str = r#"<scene version="3.0.0">
+  <integrator type="sppm"/>
+  <sensor type="perspective">
+    <float name="fov" value="50"/>
+    <transform name="to_world"><lookat origin="0, 3, 3" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/><rfilter type="box"/></film>
+  </sensor>
+  <shape type="rectangle">
+    <transform name="to_world"><scale value="2"/><rotate x="1" angle="-90"/></transform>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0.5, 0.5, 0.5"/></bsdf>
+  </shape>
+  <shape type="rectangle">
+    <transform name="to_world"><scale value="0.5"/><rotate x="1" angle="90"/><translate y="2"/></transform>
+    <emitter type="area"><rgb name="radiance" value="5, 5, 5"/></emitter>
+  </shape>
+</scene>
+"#;
+
+/// Every verb that takes a scene takes Mitsuba XML, with the same import warnings: `render`,
+/// `info`, `reference` and `converge` (which refused it as malformed TOML).
+#[test]
+fn every_scene_verb_takes_mitsuba_xml_with_its_warnings() {
+    let dir = temp_dir("xml-verbs");
+    std::fs::write(dir.path().join("floor.xml"), MITSUBA_SCENE).unwrap();
+    let runs: [&[&str]; 4] = [
+        &["render", "floor.xml", "--spp", "2", "--threads", "1", "--out", "render.exr"],
+        &["info", "floor.xml"],
+        &["reference", "floor.xml", "--spp", "4", "--threads", "1", "--out", "ref.exr"],
+        &[
+            "converge",
+            "floor.xml",
+            "--reference",
+            "ref.exr",
+            "--integrators",
+            "pt",
+            "--times",
+            "0.2",
+            "--seeds",
+            "1",
+            "--threads",
+            "1",
+        ],
+    ];
+    let mut warnings_of_render = None;
+    for args in runs {
+        let o = plexus(args, dir.path());
+        let err = stderr(&o);
+        assert!(o.status.success(), "plexus {args:?}: {err}");
+        let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("warning: ")).collect();
+        assert!(
+            warnings.iter().any(|w| w.contains("floor.xml:2: integrator 'sppm'")),
+            "plexus {args:?} printed no import warning: {err}"
+        );
+        let warnings: Vec<String> = warnings.iter().map(|w| w.to_string()).collect();
+        let first = warnings_of_render.get_or_insert_with(|| warnings.clone());
+        assert_eq!(&warnings, first, "plexus {args:?}: the import warnings differ from render's");
+    }
+    for file in ["render.exr", "ref.exr", "floor-converge.csv"] {
+        assert!(dir.path().join(file).is_file(), "{file} missing");
+    }
+}

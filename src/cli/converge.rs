@@ -16,13 +16,12 @@ use plexus::metrics::converge::{
     StudyConfig,
 };
 use plexus::metrics::plot::plot_convergence;
-use plexus::scene::load_scene;
 
 use super::bad_input;
 
 #[derive(Debug, Args)]
 pub struct ConvergeArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML, or Mitsuba XML imported on the fly, its warnings printed).
     pub scene: PathBuf,
     /// Reference image (EXR) of the same scene and resolution; see docs/reference-images.md.
     #[arg(long, value_name = "REF.exr", required_unless_present = "replot")]
@@ -94,7 +93,7 @@ pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
     }
     let Some(reference_path) = &args.reference else { return Err(bad_input("--reference is required")) };
     let reference = read_exr(reference_path).map_err(bad_input)?;
-    let mut loaded = load_scene(&args.scene, args.accel)?;
+    let mut loaded = super::import::load_any(&args.scene, args.accel)?;
     let (ref_w, ref_h) = (reference.width as u32, reference.height as u32);
     let cam = &loaded.scene.camera;
     if (cam.width, cam.height) != (ref_w, ref_h) {

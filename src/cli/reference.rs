@@ -12,7 +12,6 @@ use plexus::accel::AccelKind;
 use plexus::film::oiio::{check_output_path, write_image, WriteOptions};
 use plexus::integrator::{self, Budget, RenderJob, INTEGRATOR_NAMES};
 use plexus::metrics::converge::{camera_at_resolution, parse_resolution};
-use plexus::scene::load_scene;
 
 use super::bad_input;
 use super::progress::{bar_wanted, BarProgress};
@@ -20,7 +19,7 @@ use super::stats_json::{self, RenderStats};
 
 #[derive(Debug, Args)]
 pub struct ReferenceArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML, or Mitsuba XML imported on the fly, its warnings printed).
     pub scene: PathBuf,
     /// Output image (EXR recommended: references must stay linear and unclipped).
     #[arg(long = "out", short = 'o', value_name = "PATH")]
@@ -65,7 +64,7 @@ pub fn run_reference(args: &ReferenceArgs) -> anyhow::Result<()> {
     let threads = super::resolve_threads(args.threads, "--threads")?;
     check_output_path(&args.out).map_err(bad_input)?;
     let load_start = Instant::now();
-    let mut loaded = load_scene(&args.scene, args.accel)?;
+    let mut loaded = super::import::load_any(&args.scene, args.accel)?;
     if let Some((w, h)) = args.resolution {
         loaded.scene.camera = camera_at_resolution(&loaded.scene.camera, w, h).map_err(bad_input)?;
     }
