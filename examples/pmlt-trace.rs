@@ -1,5 +1,5 @@
 //! Chain 0's image-plane trajectory under `pmlt` (the portal paper's Fig. 4c/d), as CSV, and the
-//! integrated autocorrelation time of its raster y. Used by scripts/bench-portals.sh.
+//! integrated autocorrelation time of its raster y. Used by docs/lab/scripts/bench-portals.sh.
 //!
 //! Usage: cargo run --release --example pmlt-trace -- SCENE SEED MUTATIONS EVERY OUT.csv [KEY=VALUE ...]
 //! (KEY=VALUE: pmlt settings, as TOML values; e.g. portal=0.0). Prints one line:

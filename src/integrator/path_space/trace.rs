@@ -1,7 +1,7 @@
 //! One chain's image-plane trajectory, for the portal paper's Fig. 4c/d: the raster position of
 //! chain 0's current path every `every` mutations, and the integrated autocorrelation time of its
 //! y coordinate (how many mutations the chain needs per independent image-plane sample). Used by
-//! `scripts/bench-portals.sh` through `examples/pmlt-trace.rs`; the render itself never traces.
+//! `docs/lab/scripts/bench-portals.sh` through `examples/pmlt-trace.rs`; the render itself never traces.
 
 use glam::Vec2;
 

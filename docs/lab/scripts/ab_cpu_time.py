@@ -15,10 +15,10 @@ What is timed is the render alone, not loading or compiling:
   took about twice as long, see peers.py `warm_up`). process_time counts all the process's threads,
   Dr.Jit's workers included.
 
-    /work/peersenv/bin/python scripts/ab_cpu_time.py --scene veach-ajar --spp 64 --threads 1 --rounds 7 \\
+    /work/peersenv/bin/python docs/lab/scripts/ab_cpu_time.py --scene veach-ajar --spp 64 --threads 1 --rounds 7 \\
         --plexus target/release/plexus --mitsuba llvm_ad_rgb --mitsuba scalar_rgb
     # A/B of two plexus builds (the first is the base of the ratios):
-    /work/peersenv/bin/python scripts/ab_cpu_time.py --plexus /tmp/base/plexus --plexus target/release/plexus
+    /work/peersenv/bin/python docs/lab/scripts/ab_cpu_time.py --plexus /tmp/base/plexus --plexus target/release/plexus
 
 llvm_ad_rgb needs libLLVM: DRJIT_LIBLLVM_PATH, else Debian's libLLVM-19.so where peers.sh looks. The load average is printed before
 and after.
@@ -33,7 +33,7 @@ import tempfile
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 
 WORKER = r"""
 import sys, time

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""The `emlt` vs `pmlt` section of docs/benchmarks.md from scripts/bench-emlt.sh's runs.
+"""The `emlt` vs `pmlt` section of docs/benchmarks.md from docs/lab/scripts/bench-emlt.sh's runs.
 
-Usage: scripts/bench_emlt_section.py [--section NAME] [--equal-time-to LABEL] BENCHMARKS_MD OUT_DIR [OUT_DIR ...]
+Usage: docs/lab/scripts/bench_emlt_section.py [--section NAME] [--equal-time-to LABEL] BENCHMARKS_MD OUT_DIR [OUT_DIR ...]
 
 Reads each OUT_DIR/runs.jsonl and OUT_DIR/machine.txt, writes OUT_DIR/runs.csv and replaces the text
 between `<!-- NAME:begin -->` and `<!-- NAME:end -->` in BENCHMARKS_MD (appending the section with
@@ -80,7 +80,7 @@ def issue16_section(runs, machines):
     seeds = sorted({r["seed"] for r in runs})
     mpp = sorted({round(r["mutations_per_pixel"]) for r in runs})
     lines = [""]
-    lines.append(f"`scripts/bench-emlt.sh` (MPP={'/'.join(map(str, mpp))}, seeds "
+    lines.append(f"`docs/lab/scripts/bench-emlt.sh` (MPP={'/'.join(map(str, mpp))}, seeds "
                  f"{seeds[0]}–{seeds[-1]}): {'; '.join(machines)}. Loads before each render from "
                  f"{min(r['load1_before'] for r in runs):.1f} to {max(r['load1_before'] for r in runs):.1f}. "
                  "MSE and relMSE (ε = 0.01) of `plexus compare` against the committed references, "
@@ -159,7 +159,7 @@ def issue17_section(runs, machines, equal_time_to):
     by = lambda scene, m: [r for r in runs if r["scene"] == scene and r["method"] == m]
     mse = lambda rs: mean_se([r["mse"] for r in rs])
     lines = [""]
-    lines.append(f"`scripts/bench-emlt.sh part2` (seeds {seeds[0]}–{seeds[-1]}): {'; '.join(machines)}. "
+    lines.append(f"`docs/lab/scripts/bench-emlt.sh part2` (seeds {seeds[0]}–{seeds[-1]}): {'; '.join(machines)}. "
                  f"Loads before each render from {min(r['load1_before'] for r in runs):.1f} to "
                  f"{max(r['load1_before'] for r in runs):.1f}. MSE and relMSE (ε = 0.01) of `plexus compare` "
                  "against the committed references at their resolution and max_depth 8; mean ± standard "

@@ -8,7 +8,7 @@
 # the process's CPU seconds, and each depth's b_d with its relative standard error
 # (integrator_stats.per_depth[].b_bootstrap_relative_se), as Markdown.
 #
-# Usage: scripts/bench-mlt-brightness.sh [SEEDS] [METHODS]     (defaults 20, "mmlt rjmlt")
+# Usage: docs/lab/scripts/bench-mlt-brightness.sh [SEEDS] [METHODS]     (defaults 20, "mmlt rjmlt")
 # Environment: PLEXUS (binary), SPP [64], THREADS [2], OUTDIR [/tmp/bench-mlt-brightness], SET [none].
 set -euo pipefail
 seeds=${1:-20}
@@ -21,7 +21,7 @@ extra=()
 for kv in ${SET:-}; do
     extra+=(--set "$kv")
 done
-source "$(dirname "$0")/plexus-binary.sh"
+source "$(dirname "$0")/../../../scripts/plexus-binary.sh"
 plexus_binary bench-mlt-brightness scenes/cornell-box.toml
 mkdir -p "$outdir"
 # Seeds outer, methods inner: a load change hits both methods alike, and a partial run covers both.

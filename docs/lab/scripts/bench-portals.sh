@@ -14,7 +14,7 @@
 # Ours) so that both configurations see the same load, and the 1-minute load average is recorded
 # before every render (its median and range are printed).
 #
-# Usage: scripts/bench-portals.sh
+# Usage: docs/lab/scripts/bench-portals.sh
 # Environment (defaults in brackets):
 #   PLEXUS   binary                      [$CARGO_TARGET_DIR/release/plexus, else target/release/plexus]
 #   TIME     seconds per render          [20]
@@ -28,7 +28,7 @@
 # Prints a Markdown table (mean rRMSE over the seeds ± its standard error, the ratio Ours/MLT with
 # the standard error of the per-seed difference) and the traces' τ_y.
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../../.."
 time_budget=${TIME:-20}
 seeds=${SEEDS:-5}
 threads=${THREADS:-2}
@@ -113,5 +113,5 @@ for config in mlt ours; do
     nice "$trace_bin" scenes/portal-planes.toml 1 "$trace_mutations" "$every" "$outdir/trace-$config.csv" \
         "${args[@]}"
 done
-python3 scripts/portal_trace_svg.py "$outdir/portal-trace.svg" "MLT=$outdir/trace-mlt.csv" "Ours=$outdir/trace-ours.csv"
+python3 docs/lab/scripts/portal_trace_svg.py "$outdir/portal-trace.svg" "MLT=$outdir/trace-mlt.csv" "Ours=$outdir/trace-ours.csv"
 echo "trace plot: $outdir/portal-trace.svg"

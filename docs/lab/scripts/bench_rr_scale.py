@@ -21,7 +21,7 @@ mirror Cornell box and the environment scene of scenes/, and the five imported s
 scenes/imported at a quarter of their resolution (written next to them as .quarter-*.toml while the
 script runs, so that their relative paths hold).
 
-    /work/peersenv/bin/python scripts/bench_rr_scale.py [--scales 1,2,4] [--renders 8] [--threads 2]
+    /work/peersenv/bin/python docs/lab/scripts/bench_rr_scale.py [--scales 1,2,4] [--renders 8] [--threads 2]
         [--scenes veach-lamp,torus]
 
 `--variants "rr_scale=2;rr_scale=2,rr_depth=3"` compares groups of pt settings instead of scales
@@ -40,7 +40,7 @@ import tempfile
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 
 
 def peers_module():

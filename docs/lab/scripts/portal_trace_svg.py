@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
-"""The portal paper's Fig. 4c/d from scripts/bench-portals.sh's traces: for each configuration,
+"""The portal paper's Fig. 4c/d from docs/lab/scripts/bench-portals.sh's traces: for each configuration,
 chain 0's image-plane positions (left, the film normalised to [0, 1]², y down) and the trace plot
 of y over the first 200 points (right). Plain SVG, no dependencies.
 
-Usage: scripts/portal_trace_svg.py OUT.svg LABEL=TRACE.csv [LABEL=TRACE.csv ...]"""
+Usage: docs/lab/scripts/portal_trace_svg.py OUT.svg LABEL=TRACE.csv [LABEL=TRACE.csv ...]"""
 import csv
 import sys
 

@@ -3,9 +3,9 @@
 # on a LocalCluster of 1 and of 2 workers, its wall time, the workers' time, the merges' share,
 # and whether the images are the same bytes.
 #
-#   scripts/bench-batch.sh [BATCH.toml]      (default: python/examples/cornell.toml)
+#   docs/lab/scripts/bench-batch.sh [BATCH.toml]      (default: python/examples/cornell.toml)
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../../.." && pwd)"
 BATCH="$(realpath "${1:-$ROOT/python/examples/cornell.toml}")"
 OUT="$(mktemp -d "${TMPDIR:-/tmp}/plexus-bench-batch.XXXXXX")"
 trap 'rm -rf "$OUT"' EXIT

@@ -10,7 +10,7 @@
 # and MSE × rays (∝ variance per ray traced: the equal-cost figure that load cannot skew, since
 # MSE ∝ variance per sample / samples).
 #
-# Usage: OLD=/path/to/old/plexus NEW=/path/to/new/plexus scripts/bench-roulette.sh
+# Usage: OLD=/path/to/old/plexus NEW=/path/to/new/plexus docs/lab/scripts/bench-roulette.sh
 # Environment (defaults in brackets):
 #   TIMES       budgets in seconds          [3,6]
 #   SEEDS       seeds per budget            [3]
@@ -18,7 +18,7 @@
 #   OUTDIR      where CSVs and tables go    [/tmp/bench-roulette]
 # ~ 2 × |RR_DEPTHS| × SEEDS × Σ TIMES seconds (defaults: 108 s).
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../../.."
 : "${OLD:?set OLD to the binary built before the change}"
 : "${NEW:?set NEW to the binary built after the change}"
 times=${TIMES:-3,6}

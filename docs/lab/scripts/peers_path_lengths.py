@@ -45,7 +45,7 @@ lengths).
 
 Run it with the Python of the peers venv (scripts/peers.sh makes one; scalar_rgb needs no libLLVM):
 
-    target/peersenv/bin/python scripts/peers_path_lengths.py [--scenes veach-ajar,...] [--res 160x90]
+    target/peersenv/bin/python docs/lab/scripts/peers_path_lengths.py [--scenes veach-ajar,...] [--res 160x90]
         [--spp 16] [--depth 16] [--seed 1] [--plexus] [--check-control]
 
 Scenes, XML and depth convention are scripts/peers.py's (`scene_xml`), and so are the resolutions
@@ -65,7 +65,7 @@ import time
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 
 
 def load_peers():
@@ -392,7 +392,7 @@ def tables(results, args):
         ends = ", ".join(f"{e.get(k, 0.0):.3f}" for k in ("escaped", "max depth", "roulette", "zero throughput"))
         out.append(f"| {name} | " + " | ".join(f"{x:.4f}" for x in r["lengths"][1:]) + f" | {ends} |")
     first = next(iter(results.values()))
-    out.append(f"\n{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, `scripts/peers_path_lengths.py --res "
+    out.append(f"\n{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, `docs/lab/scripts/peers_path_lengths.py --res "
                f"{args.res or 'peers.py'} --spp {args.spp} --depth {args.depth} --seed {args.seed}"
                f"{' --plexus' if args.plexus else ''}`; Mitsuba scalar_rgb mirror, {first['spp']} spp; load average "
                f"{os.getloadavg()[0]:.1f}.")

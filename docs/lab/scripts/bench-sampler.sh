@@ -3,12 +3,12 @@
 # benchmark scenes against their references (references/, 4096 spp pt at max_depth 8): pt, BDPT and
 # the light tracer at the references' resolution and depth, SEEDS seeds each.
 #
-# Usage: scripts/bench-sampler.sh [SEEDS] [PT_SPP] [BDPT_SPP]    (defaults 3, "16 64", 16)
+# Usage: docs/lab/scripts/bench-sampler.sh [SEEDS] [PT_SPP] [BDPT_SPP]    (defaults 3, "16 64", 16)
 # Prints a Markdown table (mean MSE over the seeds per row, and the ratio Sobol / independent);
 # the table in docs/benchmarks.md ("Sobol sampling") was made with the defaults.
 # The binary is $PLEXUS if set, else the release build (built here if missing).
 set -eu
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../../.."
 if [ -z "${PLEXUS:-}" ]; then
     cargo build --release --quiet
     PLEXUS="${CARGO_TARGET_DIR:-target}/release/plexus"

@@ -5,8 +5,8 @@
 # committed references, wall and process CPU time, acceptance per strategy and emlt's guided share
 # from each render's JSON (`integrator_stats`).
 #
-# Usage: scripts/bench-emlt.sh            issue 16's run (box and door, emlt vs pmlt)
-#        scripts/bench-emlt.sh part2      issue 17's run: the four scenes, the ablation methods of
+# Usage: docs/lab/scripts/bench-emlt.sh            issue 16's run (box and door, emlt vs pmlt)
+#        docs/lab/scripts/bench-emlt.sh part2      issue 17's run: the four scenes, the ablation methods of
 #                                         the paper's Table 1 and the equal-time pmlt (the preset
 #                                         below; any variable set in the environment overrides it)
 # Environment (defaults in brackets):
@@ -25,7 +25,7 @@
 #            the equal-time renders alone, appended to OUT's existing runs (an interrupted run's
 #            second half, or the equal-time pass of some scenes run beside the others)   [0]
 #   EQUAL_TIME_TO  the method label pmlt's time is matched to   [emlt]
-#   OUT      results directory           [docs/bench/emlt]
+#   OUT      results directory           [docs/lab/data/emlt]
 #   SECTION  the docs section written: "emlt-bench" (issue 16's table) or "emlt17-bench" (issue
 #            17's: MSE ratios at equal mutations and equal time, acceptance change, CPU overhead,
 #            the ablation table)   [emlt-bench]
@@ -45,15 +45,15 @@
 #
 # Writes OUT/runs.csv (one row per render), OUT/runs.jsonl (the same with the strategy table),
 # OUT/machine.txt and the section of docs/benchmarks.md between `<!-- SECTION:begin -->` and
-# `<!-- SECTION:end -->` (scripts/bench_emlt_section.py).
+# `<!-- SECTION:end -->` (docs/lab/scripts/bench_emlt_section.py).
 # Cost at the defaults: 20 renders, about 4 CPU minutes on a quiet 2-core machine; part2: 100
 # renders, about 15 CPU minutes.
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../../.."
 if [[ ${1:-} == part2 ]]; then
     : "${METHODS:=emlt pmlt emlt:perturbations=anisotropic emlt:perturbations=all}"
     : "${SCENES:=cornell-box veach-ajar staircase breakfast-window}"
-    : "${EQUAL_TIME:=1}" "${OUT:=docs/bench/emlt17}" "${SECTION:=emlt17-bench}"
+    : "${EQUAL_TIME:=1}" "${OUT:=docs/lab/data/emlt17}" "${SECTION:=emlt17-bench}"
 elif [[ -n ${1:-} ]]; then
     echo "bench-emlt: unknown preset '$1' (the only one is 'part2')" >&2
     exit 1
@@ -64,7 +64,7 @@ first_seed=${FIRST_SEED:-0}
 threads=${THREADS:-2}
 read -r -a methods <<< "${METHODS:-emlt pmlt}"
 read -r -a scenes <<< "${SCENES:-cornell-box veach-ajar}"
-out=${OUT:-docs/bench/emlt}
+out=${OUT:-docs/lab/data/emlt}
 equal_time=${EQUAL_TIME:-0}
 equal_time_to=${EQUAL_TIME_TO:-emlt}
 section=${SECTION:-emlt-bench}
@@ -169,4 +169,4 @@ PY
 fi
 
 read -r -a section_outs <<< "${SECTION_OUTS:-$out}"
-python3 scripts/bench_emlt_section.py --section "$section" --equal-time-to "$equal_time_to" docs/benchmarks.md "${section_outs[@]}"
+python3 docs/lab/scripts/bench_emlt_section.py --section "$section" --equal-time-to "$equal_time_to" docs/benchmarks.md "${section_outs[@]}"

@@ -3,15 +3,15 @@
 # each, MSE against the path-traced references in references/ (scripts/make-references.sh), and
 # the acceptance table of the RJMLT paper's Fig. 4 on each scene.
 #
-# Usage: scripts/bench-rjmlt.sh [TIME] [SEEDS] [HARD_TIME] [SCENES]
+# Usage: docs/lab/scripts/bench-rjmlt.sh [TIME] [SEEDS] [HARD_TIME] [SCENES]
 #   defaults: 8 s per render on the Cornell scenes and HARD_TIME = 30 s on veach-ajar (at 8 s its
 #   MLT images are still dominated by start-up blotches), 10 seeds, 2 threads,
 #   SCENES = "cornell-glossy cornell-glass veach-ajar".
-# Writes docs/bench/rjmlt/<scene>-converge.{csv,md,png} and docs/bench/rjmlt/<scene>-fig4.md.
+# Writes docs/lab/data/rjmlt/<scene>-converge.{csv,md,png} and docs/lab/data/rjmlt/<scene>-fig4.md.
 # Every integrator runs with max_depth = 8 (the references' depth and the MLT default).
 # The binary is $PLEXUS if set, else the release build (built here if missing).
 set -eu
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../../.."
 TIME="${1:-8}"
 SEEDS="${2:-10}"
 HARD_TIME="${3:-30}"
@@ -21,7 +21,7 @@ if [ -z "${PLEXUS:-}" ]; then
     PLEXUS="${CARGO_TARGET_DIR:-target}/release/plexus"
 fi
 export PLEXUS
-out=docs/bench/rjmlt
+out=docs/lab/data/rjmlt
 mkdir -p "$out"
 for scene in $SCENES; do
     budget=$TIME

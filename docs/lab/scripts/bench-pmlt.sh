@@ -4,7 +4,7 @@
 # (references/, scripts/make-references.sh), and pmlt's per-strategy acceptance on the glass and
 # door scenes from its render JSON (`integrator_stats.strategies`).
 #
-# Usage: scripts/bench-pmlt.sh
+# Usage: docs/lab/scripts/bench-pmlt.sh
 # Environment (defaults in brackets):
 #   PLEXUS       binary                    [$CARGO_TARGET_DIR/release/plexus, else target/release/plexus]
 #   TIME         seconds per render on the Cornell scenes   [12]
@@ -14,7 +14,7 @@
 #   INTEGRATORS  compared integrators                        [pt bdpt mmlt rjmlt pmlt]
 #   SCENES       scene names with a reference in references/ [cornell-box cornell-glossy cornell-glass veach-ajar]
 #   ACCEPTANCE   scenes of the acceptance table              [cornell-glass veach-ajar]
-#   OUT          results directory                           [docs/bench/pmlt]
+#   OUT          results directory                           [docs/lab/data/pmlt]
 #   PORTAL_OFF   on scenes with [[portals]] also run pmlt without its portal perturbation, as the
 #                integrator `pmlt-noportal` of the tables (1) or not (0)  [1]
 #
@@ -29,13 +29,13 @@
 # scenes/S.toml --replot OUT/S-converge.csv --out-dir DIR` redraws tables and plot),
 # OUT/<scene>-cpu.csv, OUT/<scene>-strategies.json (the acceptance renders' strategy statistics),
 # OUT/<scene>-machine.txt, and then the section of docs/benchmarks.md between the markers
-# `<!-- pmlt-bench:begin -->` and `<!-- pmlt-bench:end -->` (scripts/bench_pmlt_section.py; the
+# `<!-- pmlt-bench:begin -->` and `<!-- pmlt-bench:end -->` (docs/lab/scripts/bench_pmlt_section.py; the
 # rest of the page is left as it is). OUT/reading.md (the interpretation) is written by hand and
 # must be revisited when the numbers change.
 # Cost: 5 integrators × 3 seeds × 3 × 12 s + 6 × 3 × 20 s on the door (with pmlt-noportal) and 9
 # acceptance renders ≈ 20 min of wall time.
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../../.."
 time_budget=${TIME:-12}
 door_time=${DOOR_TIME:-20}
 seeds=${SEEDS:-3}
@@ -43,7 +43,7 @@ threads=${THREADS:-2}
 read -r -a integrators <<< "${INTEGRATORS:-pt bdpt mmlt rjmlt pmlt}"
 read -r -a scenes <<< "${SCENES:-cornell-box cornell-glossy cornell-glass veach-ajar}"
 acceptance=${ACCEPTANCE:-cornell-glass veach-ajar}
-out=${OUT:-docs/bench/pmlt}
+out=${OUT:-docs/lab/data/pmlt}
 portal_off=${PORTAL_OFF:-1}
 source scripts/plexus-binary.sh
 plexus_binary bench-pmlt
@@ -153,5 +153,5 @@ PY
     done
 done
 
-python3 scripts/bench_pmlt_section.py "$out"
+python3 docs/lab/scripts/bench_pmlt_section.py "$out"
 echo "docs/benchmarks.md: pmlt section rewritten from $out; revisit $out/reading.md against the new numbers" >&2

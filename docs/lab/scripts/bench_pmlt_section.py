@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Writes pmlt's section of docs/benchmarks.md from what scripts/bench-pmlt.sh produced.
+"""Writes pmlt's section of docs/benchmarks.md from what docs/lab/scripts/bench-pmlt.sh produced.
 
-Usage: scripts/bench_pmlt_section.py [OUT]   (OUT defaults to docs/bench/pmlt)
+Usage: docs/lab/scripts/bench_pmlt_section.py [OUT]   (OUT defaults to docs/lab/data/pmlt)
 
 Reads OUT/<scene>-converge.csv (`plexus converge`'s rows, one render each), OUT/<scene>-cpu.csv (each
 render's CPU time and the load around it), OUT/<scene>-strategies.json (pmlt's strategy statistics),
@@ -16,7 +16,7 @@ import statistics
 import sys
 from collections import defaultdict
 
-ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 SCENES = ["cornell-box", "cornell-glossy", "cornell-glass", "veach-ajar"]
 BEGIN, END = "<!-- pmlt-bench:begin -->", "<!-- pmlt-bench:end -->"
 
@@ -153,7 +153,7 @@ def section(out):
         "integrator at `max_depth = 8` as the references, 2 threads, at the references' resolution. Regenerate\n"
         "(this section only; the rest of the page is not touched):\n"
         % (", ".join("`%s`" % i for i in integrators if not i.startswith("pmlt")), len(seeds), ", ".join(map(str, seeds))),
-        "```\nscripts/bench-pmlt.sh        # TIME=12 DOOR_TIME=20 SEEDS=3 THREADS=2 by default; ~20 min of wall time\n```\n",
+        "```\ndocs/lab/scripts/bench-pmlt.sh        # TIME=12 DOOR_TIME=20 SEEDS=3 THREADS=2 by default; ~20 min of wall time\n```\n",
         "Each render is one `plexus converge` run of one integrator and one seed; the integrators are\n"
         "interleaved within each seed, in an order rotated from seed to seed, so that a change of the machine's\n"
         "load hits them alike. Per-render rows: `docs/%s/<scene>-converge.csv` (converge's CSV; `--replot` redraws\n"
@@ -178,7 +178,7 @@ def section(out):
 
 
 def main():
-    out = os.path.abspath(sys.argv[1] if len(sys.argv) > 1 else os.path.join(ROOT, "docs", "bench", "pmlt"))
+    out = os.path.abspath(sys.argv[1] if len(sys.argv) > 1 else os.path.join(ROOT, "docs", "lab", "data", "pmlt"))
     text = section(out)
     page_path = os.path.join(ROOT, "docs", "benchmarks.md")
     with open(page_path) as f:
