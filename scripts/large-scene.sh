@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 20's large-scene measurement (docs/benchmarks.md, "Large scenes"): loads the 10,008,338-
+# Issue 20's large-scene measurement (docs/lab/benchmarks-history.md, "Large scenes"): loads the 10,008,338-
 # triangle displaced grid with each accelerator through `plexus info` (read the PLY, build the
 # scene and the accelerator, print the memory estimate) under /usr/bin/time -v, one run at a time,
 # and prints a Markdown table of wall time, CPU time, peak resident memory and `info`'s estimate.

@@ -50,6 +50,6 @@ for k in $(seq 1 16); do
 done
 # staircase (issue 17's emlt benchmark): the imported staircase (scenes/imported/staircase.toml,
 # 720×1280) at 72×128 and 1024 spp (about 60 CPU s): its pt noise is measured against a second,
-# independent 256-spp render in docs/benchmarks.md's issue 17 section.
+# independent 256-spp render in docs/lab/benchmarks-history.md's issue 17 section.
 "$PLEXUS" reference scenes/imported/staircase.toml --integrator pt --spp $((SPP / 4)) --seed "$SEED" \
     --resolution 72x128 --set max_depth=8 --out references/staircase.exr

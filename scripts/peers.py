@@ -23,9 +23,9 @@ all of them alike; the load average is printed with the table.
 - equal samples: both at SPP samples per pixel;
 - equal time: Mitsuba at the samples per pixel that take plexus's time (SPP x t_plexus / t_mitsuba).
 
-    scripts/peers.sh [--spp 16] [--renders 8] [--depth 16] [--scenes cornell-box,...] [--write docs/benchmarks.md]
+    scripts/peers.sh [--spp 16] [--renders 8] [--depth 16] [--scenes cornell-box,...] [--write docs/lab/benchmarks-history.md]
 
-prints the table, and with --write puts it into docs/benchmarks.md between its markers.
+prints the table, and with --write puts it into docs/lab/benchmarks-history.md between its markers.
 """
 import argparse
 import importlib.util
@@ -224,7 +224,7 @@ BEGIN, END = "<!-- peers.py table begin -->", "<!-- peers.py table end -->"
 
 
 def write_table(path, text):
-    """Replaces the text between the BEGIN and END markers of `path` (docs/benchmarks.md)."""
+    """Replaces the text between the BEGIN and END markers of `path` (docs/lab/benchmarks-history.md)."""
     doc = open(path).read()
     if BEGIN not in doc or END not in doc:
         sys.exit(f"peers.py: {path} has no '{BEGIN}' ... '{END}' markers to write the table between")
@@ -246,7 +246,7 @@ def main():
                     help="a further pt setting for plexus (repeatable), e.g. first_bounce_paths=4; "
                     "the table is then not the defaults' and must not be written over it")
     ap.add_argument("--write", metavar="FILE", help="also write the table into FILE between its markers "
-                    "(docs/benchmarks.md, section 'plexus against Mitsuba 3')")
+                    "(docs/lab/benchmarks-history.md, section 'plexus against Mitsuba 3')")
     args = ap.parse_args()
     if args.set and args.write:
         sys.exit("peers.py: --write records the defaults' table; leave out --set, or --write")

@@ -44,7 +44,7 @@
 # line per scene) is subtracted from each render's process CPU for the per-mutation costs.
 #
 # Writes OUT/runs.csv (one row per render), OUT/runs.jsonl (the same with the strategy table),
-# OUT/machine.txt and the section of docs/benchmarks.md between `<!-- SECTION:begin -->` and
+# OUT/machine.txt and the section of docs/lab/benchmarks-history.md between `<!-- SECTION:begin -->` and
 # `<!-- SECTION:end -->` (docs/lab/scripts/bench_emlt_section.py).
 # Cost at the defaults: 20 renders, about 4 CPU minutes on a quiet 2-core machine; part2: 100
 # renders, about 15 CPU minutes.
@@ -169,4 +169,4 @@ PY
 fi
 
 read -r -a section_outs <<< "${SECTION_OUTS:-$out}"
-python3 docs/lab/scripts/bench_emlt_section.py --section "$section" --equal-time-to "$equal_time_to" docs/benchmarks.md "${section_outs[@]}"
+python3 docs/lab/scripts/bench_emlt_section.py --section "$section" --equal-time-to "$equal_time_to" docs/lab/benchmarks-history.md "${section_outs[@]}"

@@ -28,7 +28,7 @@
 # Writes OUT/<scene>-converge.{csv,md} (the CSV is converge's format: `plexus converge
 # scenes/S.toml --replot OUT/S-converge.csv --out-dir DIR` redraws tables and plot),
 # OUT/<scene>-cpu.csv, OUT/<scene>-strategies.json (the acceptance renders' strategy statistics),
-# OUT/<scene>-machine.txt, and then the section of docs/benchmarks.md between the markers
+# OUT/<scene>-machine.txt, and then the section of docs/lab/benchmarks-history.md between the markers
 # `<!-- pmlt-bench:begin -->` and `<!-- pmlt-bench:end -->` (docs/lab/scripts/bench_pmlt_section.py; the
 # rest of the page is left as it is). OUT/reading.md (the interpretation) is written by hand and
 # must be revisited when the numbers change.
@@ -154,4 +154,4 @@ PY
 done
 
 python3 docs/lab/scripts/bench_pmlt_section.py "$out"
-echo "docs/benchmarks.md: pmlt section rewritten from $out; revisit $out/reading.md against the new numbers" >&2
+echo "docs/lab/benchmarks-history.md: pmlt section rewritten from $out; revisit $out/reading.md against the new numbers" >&2

@@ -5,7 +5,7 @@
 #
 # Usage: docs/lab/scripts/bench-sampler.sh [SEEDS] [PT_SPP] [BDPT_SPP]    (defaults 3, "16 64", 16)
 # Prints a Markdown table (mean MSE over the seeds per row, and the ratio Sobol / independent);
-# the table in docs/benchmarks.md ("Sobol sampling") was made with the defaults.
+# the table in docs/lab/benchmarks-history.md ("Sobol sampling") was made with the defaults.
 # The binary is $PLEXUS if set, else the release build (built here if missing).
 set -eu
 cd "$(dirname "$0")/../../.."

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The `emlt` vs `pmlt` section of docs/benchmarks.md from docs/lab/scripts/bench-emlt.sh's runs.
+"""The `emlt` vs `pmlt` section of docs/lab/benchmarks-history.md from docs/lab/scripts/bench-emlt.sh's runs.
 
 Usage: docs/lab/scripts/bench_emlt_section.py [--section NAME] [--equal-time-to LABEL] BENCHMARKS_MD OUT_DIR [OUT_DIR ...]
 

@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
-"""Writes pmlt's section of docs/benchmarks.md from what docs/lab/scripts/bench-pmlt.sh produced.
+"""Writes pmlt's section of docs/lab/benchmarks-history.md from what docs/lab/scripts/bench-pmlt.sh produced.
 
 Usage: docs/lab/scripts/bench_pmlt_section.py [OUT]   (OUT defaults to docs/lab/data/pmlt)
 
 Reads OUT/<scene>-converge.csv (`plexus converge`'s rows, one render each), OUT/<scene>-cpu.csv (each
 render's CPU time and the load around it), OUT/<scene>-strategies.json (pmlt's strategy statistics),
 OUT/<scene>-machine.txt and OUT/reading.md (the hand-written interpretation), and replaces the text between
-the markers `<!-- pmlt-bench:begin -->` and `<!-- pmlt-bench:end -->` of docs/benchmarks.md (appending
+the markers `<!-- pmlt-bench:begin -->` and `<!-- pmlt-bench:end -->` of docs/lab/benchmarks-history.md (appending
 the markers at the end of the page the first time). Nothing else on the page changes.
 """
 import csv
@@ -180,7 +180,7 @@ def section(out):
 def main():
     out = os.path.abspath(sys.argv[1] if len(sys.argv) > 1 else os.path.join(ROOT, "docs", "lab", "data", "pmlt"))
     text = section(out)
-    page_path = os.path.join(ROOT, "docs", "benchmarks.md")
+    page_path = os.path.join(ROOT, "docs", "lab", "benchmarks-history.md")
     with open(page_path) as f:
         page = f.read()
     block = BEGIN + "\n" + text + END
