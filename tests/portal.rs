@@ -1,9 +1,11 @@
-//! The portal perturbation (issue 15; Otsu, Hanika & Dachsbacher, Sec. 4) against committed
+//! The portal perturbation (Otsu, Hanika & Dachsbacher 2022, Sec. 4) against committed
 //! references: `pmlt` with portals on the paper's Fig. 4 scene (portal-planes) and on a window
 //! interior lit by an environment (breakfast-window), by region shares with the power check of
 //! tests/common/agreement.rs, and the deliberately wrong variant (the acceptance ratio without its
-//! G terms) rejected by the same test. The portal move's own density, reverse consistency and
-//! early rejections are tested inside the library (`integrator::path_space::portal`).
+//! G terms) rejected by the same test. These scene-level tests are the portal move's only tests:
+//! the library has no unit tests of its density, its reverse consistency or its early rejections
+//! (`integrator::path_space::portal` derives them in its module doc), so a wrong density shows
+//! here only as far as it moves the region shares.
 //!
 //! # The share test against a committed reference
 //! portal-planes' reference is one image, not 16 independent renders, so the reference side's
@@ -87,7 +89,7 @@ const PORTAL_PLANES_MPP: u64 = 1536;
 /// `scripts/make-references.sh`), by the module's share test.
 ///
 /// The chains are few and long (24,576 mutations each, ~35 image-plane autocorrelation times of
-/// ~700 mutations, `scripts/bench-portals.sh`) so that the chain's own stationary distribution,
+/// ~700 mutations, `docs/lab/scripts/bench-portals.sh`) so that the chain's own stationary distribution,
 /// not the resampled bootstrap it starts from, makes the image: that is what lets the wrong
 /// variant below fail at the same settings. The shares' noise depends on the mutations per render
 /// (measured: the same power with 1024 chains × 1024 mutations as with 64 × 16,384 at equal
