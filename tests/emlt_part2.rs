@@ -124,14 +124,14 @@ const NULL_TRIALS: u64 = 200_000;
 /// **The χ² bound by simulation**: `NULL_TRIALS` agreements simulated with the correct renders'
 /// share covariance and the reference's shares and noise (`shares_chi2_false_failure_rate`): the
 /// bound's false-failure rate must stay below 1e-3 (the z tests' own family-wise rate; nominal
-/// 1e-4, docs/mlt.md says why the excess is accepted), while a plain χ²₁₅ bound (correlations and
+/// 1e-4, `SHARES_CHI2_ALPHA` says why the excess is accepted), while a plain χ²₁₅ bound (correlations and
 /// estimated variances ignored) must fail more often than that: the simulation can tell a wrong
 /// bound.
 ///
 /// **Why 4× for the wrong variant**: its error is a few per cent of the light moved between several
 /// regions (the centre and right-hand regions gain, the bottom-right corner loses); at 262,144
 /// mutations a region's share noise is about as large, so the same renders' worst |z| and χ² pass
-/// it in some seed sets (docs/mlt.md, "Issue 20, session 13": the old |z| ≥ 5 control passed it
+/// it in some seed sets (docs/lab/mlt.md, "negative controls' power": the |z| ≥ 5 control passed it
 /// in 3 of 5 seed sets). At 4× the noise halves and the χ² rejects it in every seed set measured,
 /// while the correct code at 4× passes it (measured, not run here: the χ² includes the reference's
 /// noise, which does not shrink with the method's mutations).

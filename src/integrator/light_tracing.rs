@@ -33,7 +33,8 @@ pub struct LightTracerSettings {
     /// the pixel the path is counted at; `sampling::SamplerKind`). Independent is the default here:
     /// a light path lands anywhere, so stratifying the few paths counted at one pixel bought
     /// nothing measurable (MSE ratio Sobol/independent 0.97–1.12 on the Cornell scenes,
-    /// docs/benchmarks.md) while the Sobol points cost time.
+    /// docs/lab/benchmarks-history.md, "Sobol sampling at equal samples") while the Sobol points
+    /// cost time.
     pub sampler: SamplerKind,
 }
 

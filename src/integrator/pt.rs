@@ -54,7 +54,7 @@ pub struct PtSettings {
     /// Maximum number of bounces (scattering events) of a path; 1 gives direct lighting only.
     pub max_depth: u32,
     /// Russian roulette starts after this many bounces (2: as pbrt-v4, whose roulette first rolls
-    /// after its second bounce; docs/benchmarks.md, "Russian roulette's start depth").
+    /// after its second bounce; docs/lab/benchmarks-history.md, "Russian roulette's start depth").
     pub rr_depth: u32,
     /// Russian roulette keeps a path with probability min(1, `rr_scale` × its throughput)
     /// (`roulette_survival`); 1 is pbrt's and Mitsuba's rule. Must be positive and finite.
@@ -569,12 +569,12 @@ fn read_lanes(block: &[f32; 4]) -> [f32; 4] {
 /// Efficiency-Aware Russian Roulette and Splitting", derived here for a single roll). The
 /// throughput rule is this with √(E[F²]·C/(V·c)) = 1; but a roll saves only the remaining path's
 /// cost c, a fraction of the whole sample's C that has already been paid (camera ray, first bounces),
-/// so the factor is above 1 unless the remaining path is far less noisy than the sample. Measured on
-/// eleven scenes (docs/benchmarks.md, "Russian roulette's survival scale"), efficiency per ray rose
-/// at scales 2 and 4 alike (a plateau): 25–31% on the door and the torus, 6–10% on the Cornell
-/// scenes, −1% to +4% (within noise) on the rest; 2 is the plateau's cheapest point. A survivor is
-/// reweighted by 1/q; it carries at most 1/scale of a fresh path's throughput, and `max_depth`
-/// bounds the paths that never roll.
+/// so the factor is above 1 unless the remaining path is far less noisy than the sample. Measured
+/// on eleven scenes (docs/lab/benchmarks-history.md, "Russian roulette's survival scale"),
+/// efficiency per ray rose at scales 2 and 4 alike (a plateau): 25–31% on the door and the torus,
+/// 6–10% on the Cornell scenes, −1% to +4% (within noise) on the rest; 2 is the plateau's cheapest
+/// point. A survivor is reweighted by 1/q; it carries at most 1/scale of a fresh path's throughput,
+/// and `max_depth` bounds the paths that never roll.
 pub fn roulette_survival(beta: Rgb, eta_scale: f32, scale: f32) -> f32 {
     let m = scale * (beta * eta_scale).max_element();
     // `!(m < 1)` also sends a NaN to "no roll"; `li` drops non-finite throughputs before rolling.

@@ -27,10 +27,11 @@ use crate::sampling::{
 use crate::spectrum::{luminance, Rgb};
 
 /// How near a rectangle light, in diagonals of the rectangle from its centre, the path tracer
-/// samples it by solid angle (`AreaLight::solid_angle_sampling`). Measured (docs/benchmarks.md,
-/// "Sampling rectangle lights by solid angle"): within 1 diagonal solid-angle sampling takes 10% of
-/// the door's variance and 33% of the Cornell box's; 0.75 loses a third of the box's gain, and
-/// 1.25 to 4 add cost (+12% CPU time on the door at 4) for at most 1.6% less variance.
+/// samples it by solid angle (`AreaLight::solid_angle_sampling`). Measured
+/// (docs/lab/benchmarks-history.md, "Sampling rectangle lights by solid angle"): within 1 diagonal
+/// solid-angle sampling takes 10% of the door's variance and 33% of the Cornell box's; 0.75 loses a
+/// third of the box's gain, and 1.25 to 4 add cost (+12% CPU time on the door at 4) for at most
+/// 1.6% less variance.
 pub const SOLID_ANGLE_SAMPLING_RANGE: f32 = 1.0;
 
 /// A point sampled on a mesh.

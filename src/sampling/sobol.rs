@@ -43,7 +43,7 @@ pub enum SamplerKind {
     Independent,
     /// Owen-scrambled Sobol points per pixel (the module docs), the default of pt and BDPT: MSE at
     /// equal samples 0.2–0.6× the independent sampler's on the three Cornell scenes, within the
-    /// noise on the door (docs/benchmarks.md).
+    /// noise on the door (docs/lab/benchmarks-history.md, "Sobol sampling at equal samples").
     #[default]
     Sobol,
 }

@@ -323,7 +323,7 @@ fn check_shares(what: &str, a: ShareAgreement) -> ShareAgreement {
 /// is below this. Its actual false-failure rate, simulated on correct emlt runs' covariances
 /// ([`shares_chi2_false_failure_rate`], 10⁶ trials each), is 2.5e-4 to 4.9e-4 (the plug-in error
 /// of a and ν from 16 renders); accepted, as it stays below the z tests' own family-wise rate
-/// (≤ 2.6e-3, [`share_agreement`]) and the tests are seeded (docs/mlt.md, "Issue 20, session 13").
+/// (≤ 2.6e-3, [`share_agreement`]) and the tests are seeded (docs/lab/mlt.md, "negative controls' power").
 pub const SHARES_CHI2_ALPHA: f64 = 1e-4;
 
 /// The outcome of [`shares_chi2`]: the statistic T = Σ z_r² (the regions' share z of

@@ -78,7 +78,7 @@ impl ShareTest {
 /// power claim, and the χ² of the 4×4 regions' shares (`image_shares_chi2`: p ≥
 /// `SHARES_CHI2_ALPHA`), all asserted only if `assert_agreement`. The χ² sees what the worst |z|
 /// can miss: a wrong chain moving a few per cent of the light between many regions at once
-/// (docs/mlt.md, "Issue 20, session 13").
+/// (docs/lab/mlt.md, "negative controls' power").
 pub fn share_test(what: &str, images: &[Image], reference: &Image, assert_agreement: bool) -> ShareTest {
     let grids: Vec<(usize, Vec<Vec<f64>>)> =
         [COARSE, GRID].iter().map(|&g| (g, images.iter().map(|i| region_means_on(i, g)).collect())).collect();

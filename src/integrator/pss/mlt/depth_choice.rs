@@ -33,18 +33,19 @@ const MIN_NONZERO_FOR_WEIGHTS: u64 = 32;
 /// **Pooling by inverse variance.** The bootstrap's b_d and the large steps' mean are two unbiased
 /// estimates of the same b_d, with different variances per sample: a bootstrap sample is a full
 /// BDPT sample averaging all n_d techniques, by default with Sobol numbers, a large step one
-/// technique with independent numbers. Pooled sample for sample, the large steps, ~9× more
-/// numerous at 64 mutations per pixel, outweigh the more precise bootstrap and *raise* the image
-/// brightness's spread over seeds (the shipped Cornell box: 0.29% with the
-/// bootstrap's b alone, 0.44% MMLT and 0.88% RJMLT pooled; docs/benchmarks.md). The minimum-
-/// variance unbiased combination of two independent unbiased estimates weighs each by the inverse
-/// of its variance: b = (b_B/V_B + b_L·n/σ²_L) / (1/V_B + n/σ²_L), with V_B the variance of the
-/// bootstrap's mean and σ²_L that of one large step's target. Both are estimated from the
-/// bootstrap alone (`variance` honestly even for the Sobol samples where replicates exist, i.e.
-/// at depth 0, as an upper bound elsewhere; `large_step_variance` from the full samples' second
-/// moments of each technique), so the weights do not depend on the large steps' values: given the
-/// bootstrap, the large steps' term stays unbiased. The weights' dependence on the bootstrap's own
-/// samples leaves a bias of order 1/N in b_d, below its standard error by a factor √N.
+/// technique with independent numbers. Pooled sample for sample, the large steps, ~9× more numerous
+/// at 64 mutations per pixel, outweigh the more precise bootstrap and *raise* the image
+/// brightness's spread over seeds (the shipped Cornell box: 0.29% with the bootstrap's b alone,
+/// 0.44% MMLT and 0.88% RJMLT pooled; docs/lab/benchmarks-history.md, "MMLT on the shipped Cornell
+/// box"). The minimum-variance unbiased combination of two independent unbiased estimates weighs
+/// each by the inverse of its variance: b = (b_B/V_B + b_L·n/σ²_L) / (1/V_B + n/σ²_L), with V_B the
+/// variance of the bootstrap's mean and σ²_L that of one large step's target. Both are estimated
+/// from the bootstrap alone (`variance` honestly even for the Sobol samples where replicates exist,
+/// i.e. at depth 0, as an upper bound elsewhere; `large_step_variance` from the full samples'
+/// second moments of each technique), so the weights do not depend on the large steps' values:
+/// given the bootstrap, the large steps' term stays unbiased. The weights' dependence on the
+/// bootstrap's own samples leaves a bias of order 1/N in b_d, below its standard error by a factor
+/// √N.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct BEstimate {
     /// b_d: the mean target of the samples.
