@@ -1,108 +1,185 @@
 #!/usr/bin/env python3
-"""Writes docs/benchmarks.md from what scripts/benchmarks.sh produced.
+"""Rewrites the generated sections of docs/benchmarks.md from what scripts/benchmarks.sh measured.
 
-Usage: scripts/benchmarks_page.py   (from anywhere; paths are relative to the repository)
+Usage: scripts/benchmarks_page.py [SCENE ...]   (paths are relative to the repository)
 
-Reads docs/bench/<scene>-converge.csv and .md (written by `plexus converge`) for the four benchmark
-scenes and docs/bench/reading.md (the hand-written interpretation, which must be revisited when the
-numbers change), and writes docs/benchmarks.md: how to regenerate everything, what is measured, the
-machine, a summary of equal-time rankings computed from the CSVs, and per scene the plot and the
-tables exactly as `plexus converge` wrote them.
+Reads docs/bench/machine.txt (one line per scene: its latest run's commit, machine and load),
+docs/bench/<scene>-converge.csv and .md (`plexus converge`'s rows and tables) and
+references/<scene>.json (how each reference was made), and replaces the text between
+`<!-- BEGIN generated: NAME -->` and `<!-- END generated: NAME -->` in docs/benchmarks.md for
+NAME = provenance, summary, noise, and `scene SCENE` for each SCENE given (default: every scene in
+machine.txt). Everything outside the markers is hand-written and left as it is. The summary and
+noise tables cover every scene in machine.txt; a scene's rows change only when its CSV does.
 """
 import csv
 import json
+import math
 import os
 import re
 import statistics
+import sys
 from collections import defaultdict
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
-SCENES = [
-    ("cornell-box", "the Cornell box: diffuse walls and boxes, one area light in the ceiling", "128×128"),
-    ("cornell-glossy", "the Cornell box with glossy (rough conductor and plastic) boxes", "128×128"),
-    ("cornell-glass", "the Cornell box with a glass sphere: caustics on the floor", "128×128"),
-    ("veach-ajar", "the door scene: the light reaches the visible room only through the gap of an ajar door "
-     "(the MMLT paper's Fig. 1)", "160×90"),
-]
+PAGE = os.path.join(ROOT, "docs", "benchmarks.md")
+BENCH = os.path.join(ROOT, "docs", "bench")
+# The order `plexus converge --integrators all` renders them in; columns follow it.
+INTEGRATOR_ORDER = ["pt", "bdpt", "light", "pssmlt", "mmlt", "rjmlt", "pmlt", "emlt"]
+# A winner is "resolved" when the runner-up's mean error exceeds the winner's by at least this many
+# standard errors of the difference (two-sided ~95% under a normal approximation; with 2-3 seeds per
+# cell the standard errors are themselves rough, so this separates clear leads from ties, no more).
+RESOLVED_SE = 2.0
+# A render whose mean wall time exceeds its budget by more than this factor (an integrator that ends
+# only at a whole sweep, or a bootstrap longer than the budget) has its wall time shown beside it.
+OVERRUN = 1.1
+
+
+def read_machine():
+    """docs/bench/machine.txt as a list of dicts, one per scene, in file order."""
+    path = os.path.join(BENCH, "machine.txt")
+    with open(path) as f:
+        lines = [line.rstrip("\n") for line in f if line.strip() and not line.startswith("#")]
+    header = lines[0].split("\t")
+    return [dict(zip(header, line.split("\t"))) for line in lines[1:]]
 
 
 def read_rows(scene):
-    path = os.path.join(ROOT, "docs", "bench", scene + "-converge.csv")
-    with open(path) as f:
+    with open(os.path.join(BENCH, scene + "-converge.csv")) as f:
         return list(csv.DictReader(f))
 
 
-def tables_from_md(scene):
-    """The part of `plexus converge`'s Markdown after its command block: the three tables."""
-    path = os.path.join(ROOT, "docs", "bench", scene + "-converge.md")
-    with open(path) as f:
+def read_reference(scene):
+    with open(os.path.join(ROOT, "references", scene + ".json")) as f:
+        return json.load(f)
+
+
+def converge_tables(scene):
+    """(command, tables) from `plexus converge`'s Markdown: the command it ran (its binary shown as
+    `plexus`) and the three tables after it."""
+    with open(os.path.join(BENCH, scene + "-converge.md")) as f:
         text = f.read()
     fence = text.find("```")
     end = text.find("```", fence + 3)
-    head, rest = text[:fence], text[end + 3:]
-    seeds_line = [line for line in head.splitlines() if line.startswith("Reference:")]
     command = text[fence + 3:end].strip()
-    return (seeds_line[0] if seeds_line else ""), command, rest.strip()
+    command = re.sub(r"^\S*plexus\b", "plexus", command)
+    return command, text[end + 3:].strip()
 
 
-def ranking(rows, metric):
-    """Per budget: integrators sorted by mean `metric` over seeds."""
-    by = defaultdict(list)
+def cells(rows):
+    """{budget: {integrator: (mean MSE, SE of MSE, mean relMSE, SE of relMSE, n, mean wall time)}} over
+    the seeds."""
+    by = defaultdict(lambda: defaultdict(list))
+    wall = defaultdict(list)
     for r in rows:
-        by[(r["budget"], r["integrator"])].append(float(r[metric]))
-    budgets = sorted({b for b, _ in by}, key=float)
+        by[float(r["budget"])][r["integrator"]].append((float(r["mse"]), float(r["relmse"])))
+        wall[(float(r["budget"]), r["integrator"])].append(float(r["wall_time"]))
     out = {}
-    for b in budgets:
-        means = sorted((statistics.mean(v), name) for (bb, name), v in by.items() if bb == b)
-        out[b] = means
+    for budget, per in by.items():
+        out[budget] = {}
+        for name, values in per.items():
+            n = len(values)
+            mse = [v[0] for v in values]
+            rel = [v[1] for v in values]
+            se = (lambda xs: statistics.stdev(xs) / math.sqrt(n) if n > 1 else float("nan"))
+            out[budget][name] = (statistics.mean(mse), se(mse), statistics.mean(rel), se(rel), n,
+                                 statistics.mean(wall[(budget, name)]))
     return out
 
 
+def ordered(names):
+    return sorted(names, key=lambda n: (INTEGRATOR_ORDER.index(n) if n in INTEGRATOR_ORDER else 99, n))
+
+
 def fmt_budget(b):
-    return ("%g" % float(b)) + " s"
+    return "%g s" % b
 
 
-def summary(scenes_rows):
+def fmt_value(x):
+    """As `plexus converge`'s tables write errors: 1.234e-4."""
+    mantissa, exponent = ("%.3e" % x).split("e")
+    return "%se%d" % (mantissa, int(exponent))
+
+
+def fmt_ratio(r):
+    return ("%.2f×" if r < 10 else "%.1f×" if r < 100 else "%.0f×") % r
+
+
+def lead(cell, metric):
+    """The winner, runner-up, their ratio and the difference in standard errors, for metric 0 (MSE)
+    or 2 (relMSE) of one budget's cells."""
+    ranked = sorted(cell, key=lambda n: cell[n][metric])
+    best, second = ranked[0], ranked[1]
+    m1, s1 = cell[best][metric], cell[best][metric + 1]
+    m2, s2 = cell[second][metric], cell[second][metric + 1]
+    z = (m2 - m1) / math.sqrt(s1 * s1 + s2 * s2) if s1 * s1 + s2 * s2 > 0 else float("nan")
+    return best, second, m2 / m1, z
+
+
+def summary_table(machine, metric, label):
+    """Rows: scenes; columns: integrators; the winner's mean error in bold, the others' means as
+    multiples of it; then the runner-up's margin."""
+    names = ordered({r["integrator"] for m in machine for r in read_rows(m["scene"])})
     lines = [
-        "Lowest mean error at each budget (ratios are the runner-up's and the worst integrator's mean error",
-        "over the winner's; from the CSVs, so they round nothing):",
-        "",
-        "| scene | budget | lowest relMSE | runner-up (×) | worst (×) | lowest MSE | runner-up (×) |",
-        "|---|---|---|---|---|---|---|",
+        "| scene | budget | " + " | ".join("`%s`" % n for n in names) + " | runner-up's margin |",
+        "|---|---:|" + "---:|" * len(names) + "---|",
     ]
-    for scene, rows in scenes_rows:
-        rel = ranking(rows, "relmse")
-        mse = ranking(rows, "mse")
-        for b in rel:
-            r, m = rel[b], mse[b]
-            lines.append(
-                "| %s | %s | %s | %s (%.2f×) | %s (%.1f×) | %s | %s (%.2f×) |"
-                % (scene, fmt_budget(b), r[0][1], r[1][1], r[1][0] / r[0][0], r[-1][1], r[-1][0] / r[0][0],
-                   m[0][1], m[1][1], m[1][0] / m[0][0]))
-    return "\n".join(lines)
+    for m in machine:
+        scene = m["scene"]
+        by = cells(read_rows(scene))
+        budget = max(by)
+        cell = by[budget]
+        best, second, ratio, z = lead(cell, metric)
+        row = []
+        for n in names:
+            if n not in cell:
+                row.append("–")
+            elif n == best:
+                row.append("**%s**" % fmt_value(cell[n][metric]))
+            else:
+                row.append(fmt_ratio(cell[n][metric] / cell[best][metric]))
+            if n in cell and cell[n][5] > OVERRUN * budget:
+                row[-1] += " (%.1f s)" % cell[n][5]
+        if math.isnan(z):
+            margin = "`%s` %s (one seed: not resolved)" % (second, fmt_ratio(ratio))
+        else:
+            verdict = "resolved" if z >= RESOLVED_SE else "not resolved"
+            margin = "`%s` %s, %.1f SE: %s" % (second, fmt_ratio(ratio), z, verdict)
+        lines.append("| [%s](#%s) | %s | %s | %s |" % (scene, scene, fmt_budget(budget), " | ".join(row), margin))
+    return "%s at each scene's longest budget: the lowest mean over the seeds in bold, every other integrator's mean as a multiple of it.\n\n%s" % (
+        label, "\n".join(lines))
 
 
-def machine():
-    """What scripts/benchmarks.sh recorded of the machine and the build when it ran."""
-    try:
-        with open(os.path.join(ROOT, "docs", "bench", "machine.txt")) as f:
-            return f.read().strip()
-    except OSError:
-        return "not recorded (docs/bench/machine.txt is missing)"
+def summary(machine):
+    plots = " ".join(
+        '<a href="#%s"><img src="img/%s-converge.png" width="49%%" alt="%s: error against wall time"></a>' %
+        (m["scene"], m["scene"], m["scene"]) for m in machine)
+    return "\n\n".join([
+        summary_table(machine, 0, "**MSE**"),
+        summary_table(machine, 2, "**relMSE**"),
+        "\"Runner-up's margin\": the second lowest mean as a multiple of the lowest, and their difference in standard "
+        "errors of the difference (from the seeds' sample standard deviations); \"resolved\" at %g SE or more. "
+        "Computed from the CSVs, so nothing is rounded before the ratios. A time in parentheses: that "
+        "integrator's mean wall time, where it overran the budget by more than %d%%." % (
+            RESOLVED_SE, round(100 * (OVERRUN - 1))),
+        "Error against wall time per scene (log-log; a line through the means over the seeds, the band ±1 standard "
+        "deviation; click a plot for the scene's tables):",
+        plots,
+    ])
 
 
 def reference_noise(scene, rows):
-    """(reference spp, PT spp at the longest budget, estimated variance of the reference, PT's mean
-    MSE at the longest budget). The reference is PT with the same settings, so its per-pixel
-    variance is c / spp_ref where c / spp is PT's expected MSE at spp samples per pixel. Fitting
-    the measured MSE_i = c (1 / spp_i + 1 / spp_ref) (the render's variance plus the reference's)
-    over PT's runs gives c."""
-    with open(os.path.join(ROOT, "references", scene + ".json")) as f:
-        ref = json.load(f)
-    spp_ref = float(ref["integrator_stats"]["spp"])
+    """(reference spp, pt's spp at the longest budget, estimated variance of the reference, pt's mean
+    MSE there), or None without pt rows. The reference is pt with the same depth, so its per-pixel
+    variance is c / spp_ref, where c / spp is pt's expected MSE at spp samples per pixel; fitting the
+    measured MSE_i = c (1 / spp_i + 1 / spp_ref) (the render's variance plus the reference's) over
+    pt's runs by least squares through the origin gives c."""
+    ref = read_reference(scene)
+    spp_ref = float(ref["budget"]["samples_per_pixel"])
     width, height = ref["resolution"]
     pixels = float(width * height)
     pt = [r for r in rows if r["integrator"] == "pt"]
+    if not pt:
+        return None
     x = [pixels / float(r["samples_or_mutations"]) + 1.0 / spp_ref for r in pt]
     y = [float(r["mse"]) for r in pt]
     c = sum(a * b for a, b in zip(x, y)) / sum(a * a for a in x)
@@ -113,107 +190,109 @@ def reference_noise(scene, rows):
     return spp_ref, spp_pt, c / spp_ref, mse_pt
 
 
-def noise_table(scenes_rows):
+def noise(machine):
     lines = [
-        "| scene | reference spp | PT spp at the longest budget | estimated reference variance (MSE floor) | "
-        "share of PT's MSE there |",
-        "|---|---:|---:|---:|---:|",
+        "| scene | reference | reference spp | `pt` spp at the longest budget | estimated reference variance "
+        "(MSE floor) | share of `pt`'s MSE there | lowest MSE there, floor subtracted |",
+        "|---|---|---:|---:|---:|---:|---:|",
     ]
-    for scene, rows in scenes_rows:
-        spp_ref, spp_pt, floor, mse_pt = reference_noise(scene, rows)
-        lines.append("| %s | %d | %.0f | %.2e | %.0f%% |" % (scene, spp_ref, spp_pt, floor, 100.0 * floor / mse_pt))
+    for m in machine:
+        scene = m["scene"]
+        rows = read_rows(scene)
+        est = reference_noise(scene, rows)
+        ref = read_reference(scene)
+        made = "`%s`, %d×%d, max_depth %s" % (ref["integrator"], ref["resolution"][0], ref["resolution"][1],
+                                               ref["settings"]["max_depth"])
+        if est is None:
+            lines.append("| %s | %s | %d | – | – | – | – |" % (scene, made, ref["budget"]["samples_per_pixel"]))
+            continue
+        spp_ref, spp_pt, floor, mse_pt = est
+        by = cells(rows)
+        cell = by[max(by)]
+        best = min(cell, key=lambda n: cell[n][0])
+        lines.append("| %s | %s | %d | %.0f | %s | %.0f%% | `%s` %s |" % (
+            scene, made, spp_ref, spp_pt, fmt_value(floor), 100.0 * floor / mse_pt, best,
+            fmt_value(cell[best][0] - floor)))
     return "\n".join(lines)
 
 
-def kept_sections(path):
-    """Sections other scripts own, kept across a regeneration: the text from `<!-- NAME:begin -->` to
-    `<!-- NAME:end -->` in the current page (scripts/bench-pmlt.sh writes its section this way)."""
-    try:
-        with open(path) as f:
-            page = f.read()
-    except OSError:
-        return []
-    return [m.group(0) for m in re.finditer(r"<!-- ([\w-]+):begin -->.*?<!-- \1:end -->", page, re.S)]
+def provenance(machine):
+    first = max(machine, key=lambda m: m["date"])
+    lines = [
+        "Machine (when the latest scene ran): %s, %s cores, %s GiB. Per scene, the run that produced its rows:" % (
+            first["cpu"], first["cores"], first["mem_gib"]),
+        "",
+        "| scene | date (UTC) | commit | build inputs modified | threads | budgets | seeds | wall time | CPU share "
+        "| load average: start, mean, max |",
+        "|---|---|---|---|---:|---|---:|---:|---:|---|",
+    ]
+    for m in machine:
+        threads = float(m["threads"])
+        share = float(m["cpu_s"]) / (float(m["wall_s"]) * threads) if float(m["wall_s"]) > 0 else float("nan")
+        lines.append("| %s | %s | `%s` | %s | %s | %s | %s | %s s | %.0f%% | %s, %s, %s |" % (
+            m["scene"], m["date"].replace("T", " "), m["commit"], m["dirty"], m["threads"],
+            ", ".join(fmt_budget(float(t)) for t in m["times"].split(",")), m["seeds"], m["wall_s"], 100.0 * share,
+            m["load_start"], m["load_mean"], m["load_max"]))
+    dropped = sum(int(r["nonfinite_dropped"]) for m in machine for r in read_rows(m["scene"]))
+    lines += [
+        "",
+        "\"Build inputs modified\": whether `src`, `ffi`, `build.rs`, `Cargo.*`, `scenes` or `references` differed "
+        "from the commit (uncommitted or untracked files) when the binary was built. \"CPU share\": the CPU time "
+        "`plexus converge` got over the wall time and its worker threads (scene loading included); below 100%% "
+        "the machine was shared, and equal-time figures measure less work than an idle machine's. The load average "
+        "is the 1-minute one, sampled every 10 s; the machine has %s cores." % first["cores"],
+        "",
+        "Non-finite contributions dropped over all %d renders: %d." % (
+            sum(len(read_rows(m["scene"])) for m in machine), dropped),
+    ]
+    return "\n".join(lines)
+
+
+def scene_section(m):
+    scene = m["scene"]
+    ref = read_reference(scene)
+    command, tables = converge_tables(scene)
+    head = ("`%s` at %d×%d against `references/%s.exr` (`%s`, %d spp, max_depth %s). Rendered %s at `%s` "
+            "with:\n\n```\n%s\n```" % (
+                ref["scene"], ref["resolution"][0], ref["resolution"][1], scene, ref["integrator"],
+                ref["budget"]["samples_per_pixel"], ref["settings"]["max_depth"], m["date"].replace("T", " "),
+                m["commit"], command))
+    plot = "![%s: relMSE and MSE against wall time](img/%s-converge.png)" % (scene, scene)
+    return "\n\n".join([head, plot, tables])
+
+
+def replace_section(page, name, body):
+    begin, end = "<!-- BEGIN generated: %s -->" % name, "<!-- END generated: %s -->" % name
+    block = begin + "\n" + body.strip() + "\n" + end
+    if begin in page and end in page:
+        start = page.index(begin)
+        stop = page.index(end) + len(end)
+        return page[:start] + block + page[stop:]
+    # A scene without a section yet: after the last scene's section, else at the end.
+    last = list(re.finditer(r"<!-- END generated: scene [\w-]+ -->", page))
+    at = last[-1].end() if last else len(page.rstrip("\n"))
+    name_heading = "\n\n## %s\n\n" % name.split(" ", 1)[1] if name.startswith("scene ") else "\n\n"
+    return page[:at] + name_heading + block + page[at:]
 
 
 def main():
-    scenes_rows = [(s, read_rows(s)) for s, _, _ in SCENES]
-    seeds = sorted({int(r["seed"]) for _, rows in scenes_rows for r in rows})
-    budgets = sorted({r["budget"] for _, rows in scenes_rows for r in rows}, key=float)
-    integrators = []
-    for _, rows in scenes_rows:
-        for r in rows:
-            if r["integrator"] not in integrators:
-                integrators.append(r["integrator"])
-    with open(os.path.join(ROOT, "docs", "bench", "reading.md")) as f:
-        reading = f.read().strip()
-
-    out = []
-    out.append("# Benchmarks: error against render time\n")
-    out.append(
-        "How much accuracy each integrator buys per second, on four shipped scenes, measured with `plexus converge`\n"
-        "against long path-traced references. Integrators: %s. Budgets: %s. Seeds: %s (%d per cell).\n"
-        % (", ".join("`%s`" % i for i in integrators), ", ".join(fmt_budget(b) for b in budgets),
-           ", ".join(map(str, seeds)), len(seeds)))
-    out.append("Everything on this page regenerates with two scripts (this page itself with the third):\n")
-    out.append("```\n"
-               "scripts/make-references.sh             # references/*.exr: PT, max_depth 8, 4096 spp (veach-ajar 8192); ~20 min\n"
-               "scripts/benchmarks.sh all 3,6,12 3     # docs/bench/*-converge.{csv,md}, docs/img/*-converge.png; ~30 min\n"
-               "scripts/benchmarks_page.py             # this page, from those files and docs/bench/reading.md\n"
-               "```\n")
-    out.append("For each scene S, `scripts/benchmarks.sh` runs:\n")
-    out.append("```\n" + tables_from_md(SCENES[0][0])[1].replace(SCENES[0][0], "S") + "\n```\n")
-    out.append("Tables and plots redraw from a CSV without rendering: "
-               "`plexus converge scenes/S.toml --replot docs/bench/S-converge.csv --out-dir DIR`.\n")
-    out.append("## What is measured\n")
-    out.append(
-        "- **MSE** = mean over pixels and channels of (a − b)²; **relMSE** = mean of (a − b)²/(b² + ε), ε = 1e-2\n"
-        "  (definitions in `src/metrics/compare.rs`); b is the reference. relMSE weighs dark regions as much as\n"
-        "  bright ones, MSE is dominated by the bright ones: read both.\n"
-        "- Each cell: mean ± sample standard deviation (n − 1) over the seeds, with the **mean wall time actually\n"
-        "  spent** in parentheses. Bold: lowest mean in the column.\n"
-        "- Every integrator runs with `max_depth = 8` (the MLT papers' L), as the references, so an error is noise\n"
-        "  and not a difference in which paths are counted; other settings are the defaults of the README's table.\n"
-        "- A time budget covers the whole render, MLT's bootstrap included; passes are short (one sample per pixel,\n"
-        "  or about one mutation per pixel), so every render ends within about one pass of its budget (the wall\n"
-        "  times in parentheses).\n"
-        "- CSV columns: integrator, seed, budget, wall_time, samples_or_mutations, rays, mse, relmse,\n"
-        "  nonfinite_dropped (the number of non-finite contributions dropped; zero in every run here: %s).\n"
-        % ("checked" if all(r["nonfinite_dropped"] == "0" for _, rows in scenes_rows for r in rows)
-           else "NOT zero in some runs, see the CSVs"))
-    out.append("## Machine and caveats\n")
-    out.append(
-        "- **Machine and build** (recorded by the script when it ran): %s. 2 worker threads, release build.\n"
-        "  Other work may share the machine, so absolute rates are indicative; the rankings and ratios within\n"
-        "  one scene, measured in one run, are what to read.\n"
-        "- **Few seeds**: with %d seeds the standard deviations are rough; MLT errors vary more across seeds than\n"
-        "  independent-sample integrators' (a chain that finds a bright path late leaves a blotch). Differences\n"
-        "  within about one standard deviation are not significant.\n"
-        "- **Reference noise** adds to every MSE: E[MSE] = the render's own MSE + the reference's variance, a\n"
-        "  floor no integrator can go below. Estimated from PT's runs (the reference is PT with the same\n"
-        "  settings, so its variance is PT's per-sample variance over its sample count):\n\n"
-        "%s\n\n"
-        "  Subtract the floor before comparing an integrator whose MSE is close to it (the light tracer's on the\n"
-        "  Cornell scenes): its own error is smaller than the table says, so ratios against it are understated.\n"
-        % (machine(), len(seeds), noise_table(scenes_rows)))
-    out.append("## Summary\n")
-    out.append(summary(scenes_rows) + "\n")
-    for scene, description, res in SCENES:
-        seeds_line, _, tables = tables_from_md(scene)
-        out.append("## %s\n" % scene)
-        out.append("`scenes/%s.toml`: %s; %s against `references/%s.exr`.\n" % (scene, description, res, scene))
-        out.append("![%s: relMSE and MSE against wall time](img/%s-converge.png)\n" % (scene, scene))
-        out.append(tables + "\n")
-    out.append("## Reading the results\n")
-    out.append(reading + "\n")
-    large = os.path.join(ROOT, "docs", "bench", "large-scene.md")
-    if os.path.exists(large):
-        with open(large) as f:
-            out.append(f.read().strip() + "\n")
-    page = os.path.join(ROOT, "docs", "benchmarks.md")
-    out.extend(block + "\n" for block in kept_sections(page))
-    with open(page, "w") as f:
-        f.write("\n".join(out))
+    machine = read_machine()
+    known = [m["scene"] for m in machine]
+    wanted = sys.argv[1:] or known
+    for scene in wanted:
+        if scene not in known:
+            sys.exit("benchmarks_page.py: %s has no line in docs/bench/machine.txt: run scripts/benchmarks.sh "
+                     "--scenes %s first" % (scene, scene))
+    with open(PAGE) as f:
+        page = f.read()
+    page = replace_section(page, "provenance", provenance(machine))
+    page = replace_section(page, "summary", summary(machine))
+    page = replace_section(page, "noise", noise(machine))
+    for m in machine:
+        if m["scene"] in wanted:
+            page = replace_section(page, "scene " + m["scene"], scene_section(m))
+    with open(PAGE, "w") as f:
+        f.write(page)
 
 
 if __name__ == "__main__":
