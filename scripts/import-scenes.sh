@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Re-imports the seven Mitsuba scenes of ../shared/scenes (beside the repository) into
-# scenes/imported/NAME.toml with `plexus import`, and records each import's warnings in
-# scenes/imported/NAME.warnings. The TOML files refer to the meshes and textures where they are,
-# in ../shared/scenes, by paths relative to scenes/imported/ (so a clone with shared/ beside it
-# renders them as they are); `tests/import.rs` checks that the committed files are exactly what
-# the importer writes today.
+# Re-imports the seven Mitsuba scenes of scenes/mitsuba/ into scenes/imported/NAME.toml with
+# `plexus import`, and records each import's warnings in scenes/imported/NAME.warnings. The TOML
+# files refer to the meshes and textures where they are, in scenes/mitsuba/, by paths relative to
+# scenes/imported/; `tests/import.rs` checks that the committed files are exactly what the importer
+# writes today. The XML paths written into the TOML comments and the warnings are relative to the
+# repository root, where this script runs.
 #
 # Usage: scripts/import-scenes.sh        (from anywhere; the binary is $PLEXUS or the release build)
 set -euo pipefail
@@ -14,18 +14,14 @@ if [[ -z "${PLEXUS:-}" ]]; then
     cargo build --release --quiet
 fi
 plexus_binary import-scenes.sh
-shared=../shared/scenes
-if [[ ! -d "$shared" ]]; then
-    echo "import-scenes.sh: '$shared' not found: the shared scene data must sit beside the repository" >&2
-    exit 1
-fi
+data=scenes/mitsuba
 mkdir -p scenes/imported
 status=0
 # name           XML file                 extra import options
 while read -r name xml extra; do
     echo "== $name" >&2
     # shellcheck disable=SC2086
-    "$plexus" import "$shared/$name/$xml" --out "scenes/imported/$name.toml" $extra \
+    "$plexus" import "$data/$name/$xml" --out "scenes/imported/$name.toml" $extra \
         2> >(tee "scenes/imported/$name.warnings" >&2) || status=1
 done <<'LIST'
 cornell-box    cbox.xml

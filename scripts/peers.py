@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Path-tracing efficiency of plexus against Mitsuba 3 (issue 20), on the same scenes.
 
-Scenes: the Cornell box of ../shared/scenes/cornell-box/cbox.xml, its glossy variant (the short
+Scenes: the Cornell box of scenes/mitsuba/cornell-box/cbox.xml, its glossy variant (the short
 block a blue rough plastic, alpha 0.08, the tall one a rough gold conductor, alpha 0.2, as in
 scenes/cornell-glossy.toml), its glass variant (the short block smooth glass, ior 1.5) and the door
 (veach-ajar). Both renderers read the same XML: Mitsuba 3 through scripts/crosscheck.py's

@@ -5,8 +5,8 @@
 # Debian's libllvm19 (apt-get install libllvm19), found through DRJIT_LIBLLVM_PATH.
 #
 # Usage: scripts/peers.sh [peers.py options, e.g. --spp 64 --renders 4]
-# The binary is $PLEXUS if set, else the release build (built here if missing); ../shared/scenes
-# must sit beside the repository. docs/lab/benchmarks-history.md ("plexus against Mitsuba 3") holds the table.
+# The binary is $PLEXUS if set, else the release build (built here if missing); the scenes' XML is
+# in scenes/mitsuba/. docs/lab/benchmarks-history.md ("plexus against Mitsuba 3") holds the table.
 set -eu
 cd "$(dirname "$0")/.."
 if [ -z "${PLEXUS:-}" ]; then

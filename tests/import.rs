@@ -1,12 +1,9 @@
-//! The seven Mitsuba scenes of ../shared/scenes (beside the repository): each imports to exactly the
-//! TOML committed in scenes/imported/ (so the committed files are what `plexus import` writes
-//! today), with the warnings committed beside it, and each committed TOML loads with the ordinary
-//! loader (every mesh and texture found through its relative paths) and renders with `pt`, `bdpt`
-//! and `mmlt` (a smoke check: a tiny image, finite and not black, for each). `plexus render
-//! SCENE.xml` renders a Mitsuba file directly.
-//!
-//! The scene data is not part of the repository: without ../shared/scenes these tests fail with a
-//! message saying so, never skip.
+//! The seven Mitsuba scenes of scenes/mitsuba/ (XML, meshes and textures; sources and licences in
+//! scenes/mitsuba/LICENSES.md): each imports to exactly the TOML committed in scenes/imported/ (so
+//! the committed files are what `plexus import` writes today), with the warnings committed beside
+//! it, and each committed TOML loads with the ordinary loader (every mesh and texture found through
+//! its relative paths) and renders with `pt`, `bdpt` and `mmlt` (a smoke check: a tiny image,
+//! finite and not black, for each). `plexus render SCENE.xml` renders a Mitsuba file directly.
 
 use std::path::{Path, PathBuf};
 
@@ -29,18 +26,13 @@ const SCENES: &[(&str, &str, bool)] = &[
     ("living-room", "scene.xml", false),
 ];
 
-fn shared() -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
-    assert!(
-        p.is_dir(),
-        "the Mitsuba scene data is missing: expected '{}' (shared/ beside the repository, as in CI)",
-        p.display()
-    );
-    p
+/// The directory of the Mitsuba scenes' data, scenes/mitsuba/ in the repository.
+fn scene_data() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/mitsuba")
 }
 
 /// Run from the repository root, as scripts/import-scenes.sh is, so that the paths written in the
-/// TOML header and warnings are the same.
+/// TOML header and warnings are the same (repository-relative).
 fn in_root() {
     std::env::set_current_dir(env!("CARGO_MANIFEST_DIR")).expect("cd to the repository");
 }
@@ -48,10 +40,9 @@ fn in_root() {
 /// Imports scene `name` of `SCENES`, compares with the committed TOML and warnings, and loads the
 /// committed TOML.
 fn import_and_load(name: &str) {
-    shared();
     in_root();
     let &(_, xml, skip_missing) = SCENES.iter().find(|s| s.0 == name).expect("listed scene");
-    let xml_path = PathBuf::from(format!("../shared/scenes/{name}/{xml}"));
+    let xml_path = PathBuf::from(format!("scenes/mitsuba/{name}/{xml}"));
     let options = ImportOptions {
         toml_dir: Some(PathBuf::from("scenes/imported")),
         skip_missing_meshes: skip_missing,
@@ -128,9 +119,9 @@ fn living_room_imports_and_loads() {
 /// `plexus import` of a scene with a missing mesh fails naming it, exit code 2.
 #[test]
 fn render_and_import_from_the_command_line() {
-    let shared = shared();
+    let data = scene_data();
     let dir = temp_dir("import");
-    let xml = shared.join("veach-lamp/scene.xml");
+    let xml = data.join("veach-lamp/scene.xml");
     let out = dir.path().join("lamp.png");
     let o = plexus(
         &["render", xml.to_str().unwrap(), "--spp", "1", "--out", out.to_str().unwrap(), "--threads", "2"],
@@ -139,9 +130,9 @@ fn render_and_import_from_the_command_line() {
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(out.is_file());
-    assert!(err.contains("scene.xml:59: <bsdf type=\"ward\" id=\"LampMaterial\"> mapped to a GGX conductor"), "{err}");
+    assert!(err.contains("scene.xml:36: <bsdf type=\"ward\" id=\"LampMaterial\"> mapped to a GGX conductor"), "{err}");
 
-    let ajar = shared.join("veach-ajar/scene_v3.xml");
+    let ajar = data.join("veach-ajar/scene_v3.xml");
     let o = plexus(&["import", ajar.to_str().unwrap(), "--out", "ajar.toml"], dir.path());
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
