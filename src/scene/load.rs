@@ -3,7 +3,7 @@
 //! scene asks for.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{Mat3, Mat4, Vec3};
@@ -48,8 +48,8 @@ pub struct RenderDesc {
 /// `accel` overrides the file's `[render] accel`.
 pub fn load_scene(path: &Path, accel: Option<AccelKind>) -> Result<LoadedScene, SceneError> {
     let name = path.display().to_string();
-    let text =
-        std::fs::read_to_string(path).map_err(|e| SceneError::Read { file: name.clone(), reason: e.to_string() })?;
+    let text = crate::input_file::read_regular_text(path, crate::input_file::MAX_SCENE_TEXT_BYTES)
+        .map_err(|reason| SceneError::Read { file: name.clone(), reason })?;
     let base = path.parent().unwrap_or(Path::new(""));
     let mut loaded = load_scene_str(&text, base, &name, accel)?;
     loaded.scene.source = Some(path.to_path_buf());
@@ -628,6 +628,24 @@ impl Builder<'_> {
                 ))
             }
         };
+        // A scene file may name its images, but only below the directory the render runs in: a
+        // downloaded scene must not make plexus write (or replace) a file anywhere else.
+        let mut outputs = Vec::with_capacity(r.output.len());
+        for o in r.output {
+            let path = PathBuf::from(&o);
+            let escapes = path.components().any(|c| !matches!(c, Component::Normal(_) | Component::CurDir));
+            if o.is_empty() || escapes {
+                return Err(self.err(
+                    "render.output",
+                    format!(
+                        "expected paths below the current directory (relative, without '..'), got {}; \
+                         give other places with --out",
+                        toml::Value::String(o)
+                    ),
+                ));
+            }
+            outputs.push(path);
+        }
         Ok(RenderDesc {
             integrator,
             integrator_params: params,
@@ -635,7 +653,7 @@ impl Builder<'_> {
             time,
             seed,
             threads,
-            outputs: r.output.into_iter().map(PathBuf::from).collect(),
+            outputs,
             accel: accel_override.or(r.accel).unwrap_or_default(),
         })
     }

@@ -344,6 +344,7 @@ impl<'a> ImageRender<'a> {
             complete,
             interrupted: false,
             wall_time_s: if self.session.shard.is_some() { 0.0 } else { self.earlier_seconds + elapsed.as_secs_f64() },
+            units: self.session.shard,
         }
     }
 

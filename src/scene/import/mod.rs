@@ -42,12 +42,19 @@ pub enum ImportError {
     Scene(#[from] SceneError),
 }
 
+/// Errors and warnings quote the file (ids, names, paths): each is kept to one line
+/// (`toml_out::one_line`), so a file cannot print a second, made-up line of its own.
 impl ImportError {
     pub fn at(loc: &Loc, message: impl Into<String>) -> ImportError {
-        ImportError::At { file: loc.file.to_string(), line: loc.line, message: message.into() }
+        let (file, message) = (toml_out::one_line(&loc.file).into_owned(), message.into());
+        ImportError::At { file, line: loc.line, message: toml_out::one_line(&message).into_owned() }
     }
     pub fn file(file: &str, message: impl Into<String>) -> ImportError {
-        ImportError::File { file: file.to_string(), message: message.into() }
+        let message = message.into();
+        ImportError::File {
+            file: toml_out::one_line(file).into_owned(),
+            message: toml_out::one_line(&message).into_owned(),
+        }
     }
 }
 
@@ -88,7 +95,7 @@ impl Warnings {
                         format!(" (and {} more: lines {}{etc})", n - 1, lines.join(", "))
                     }
                 };
-                format!("{}: {msg}{more}", locs[0])
+                toml_out::one_line(&format!("{}: {msg}{more}", locs[0])).into_owned()
             })
             .collect()
     }
@@ -142,6 +149,10 @@ pub fn load_mitsuba(
     let name = format!("{} (imported)", path.display());
     let mut loaded = load_scene_str(&imported.toml, base, &name, accel)?;
     loaded.scene.source = Some(path.to_path_buf());
+    // The importer writes no outputs (a Mitsuba file names none plexus takes); a rendered XML
+    // scene writes where the command line says, or beside the current directory's stem.
+    debug_assert!(loaded.render.outputs.is_empty());
+    loaded.render.outputs.clear();
     Ok((loaded, imported.warnings))
 }
 

@@ -27,6 +27,7 @@ pub fn convert(
     let mut integrator = None;
     let mut shapes = Vec::new();
     let mut environment: Option<Section> = None;
+    let mut converted = serialized::ConvertedMeshes::new(mesh_dir);
     for obj in &objects.top {
         match obj.class.as_str() {
             "sensor" => {
@@ -38,7 +39,7 @@ pub fn convert(
             }
             "integrator" => integrator = Some(integrator_section(obj, &mut w)?),
             "shape" => {
-                if let Some(s) = shape(objects, obj, &mut materials, toml_dir, mesh_dir, skip_missing, &mut w)? {
+                if let Some(s) = shape(objects, obj, &mut materials, toml_dir, &mut converted, skip_missing, &mut w)? {
                     shapes.push(s);
                 }
             }
@@ -289,7 +290,7 @@ fn shape(
     s: &Rc<Obj>,
     materials: &mut Materials,
     toml_dir: &Path,
-    mesh_dir: &Path,
+    converted: &mut serialized::ConvertedMeshes,
     skip_missing: bool,
     w: &mut Warnings,
 ) -> Result<Option<Section>, ImportError> {
@@ -334,8 +335,10 @@ fn shape(
             let ply = if path.is_file() {
                 let mesh = serialized::read(&path, index as usize)
                     .map_err(|e| ImportError::at(&s.loc, format!("mesh '{}': {e}", path.display())))?;
-                let out = mesh_dir.join(&ply_name);
-                serialized::write_ply(&out, &mesh).map_err(|e| ImportError::at(&s.loc, e))?;
+                let (out, note) = converted.convert(&path, index, &mesh).map_err(|e| ImportError::at(&s.loc, e))?;
+                if let Some(note) = note {
+                    w.warn(&s.loc, note);
+                }
                 out
             } else {
                 // The PLY this conversion writes, made earlier (e.g. shipped without the original).
