@@ -257,3 +257,206 @@ fn resume_writes_only_below_the_state_files_directory() {
     assert!(o.status.success(), "{err}");
     assert!(err.contains("writes") && err.contains("sub/img.exr"), "{err}");
 }
+
+/// `plexus ARGS` in `cwd` as `plexus` runs it, killed after `seconds` (then the test fails: the
+/// input made plexus hang).
+fn plexus_within(args: &[&str], cwd: &Path, seconds: u64) -> std::process::Output {
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_plexus"))
+        .args(args)
+        .current_dir(cwd)
+        .env("CI", "true")
+        .env_remove("RUST_BACKTRACE")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run plexus");
+    let start = std::time::Instant::now();
+    while child.try_wait().expect("wait").is_none() {
+        if start.elapsed().as_secs() >= seconds {
+            child.kill().ok();
+            let out = child.wait_with_output().expect("output");
+            panic!("plexus {args:?} still ran after {seconds} s: {}", String::from_utf8_lossy(&out.stderr));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().expect("output")
+}
+
+fn mkfifo(path: &Path) {
+    let c = std::ffi::CString::new(path.to_str().expect("UTF-8 path")).expect("no NUL");
+    // SAFETY: `c` is a NUL-terminated path that outlives the call.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0, "mkfifo {}", path.display());
+}
+
+/// One line `error: ...` containing every needle, exit 2.
+fn assert_one_line_error(o: &std::process::Output, needles: &[&str]) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.starts_with("error: ") && err.trim_end().lines().count() == 1, "{err}");
+    for n in needles {
+        assert!(err.contains(n), "'{n}' not in: {err}");
+    }
+}
+
+/// Textures, included XML files, scenes and states that are devices or FIFOs are one-line errors
+/// at once: before, OpenImageIO blocked on a FIFO texture and read `/dev/zero` for ever, and a
+/// FIFO include, scene or state file blocked its reader. An OBJ's `mtllib /dev/zero` opens
+/// nothing (it read until memory ran out).
+#[test]
+fn devices_and_fifos_are_refused_by_every_reader() {
+    let dir = temp_dir("trust-fifo");
+    let d = dir.path();
+    mkfifo(&d.join("fifo"));
+    for file in ["/dev/zero", "fifo"] {
+        let material = format!(
+            "[materials.tex]\ntype = \"diffuse\"\nreflectance = {{ texture = \"bitmap\", file = \"{file}\" }}\n\
+             [[shapes]]\ntype = \"quad\"\nmaterial = \"tex\"\n"
+        );
+        std::fs::write(d.join("tex.toml"), tiny_scene("[8, 6]", &material)).unwrap();
+        let o = plexus_within(&["render", "tex.toml", "--spp", "1", "--threads", "1"], d, 20);
+        assert_one_line_error(&o, &[file, "not a regular file"]);
+    }
+    std::fs::write(d.join("mtl.obj"), "mtllib /dev/zero\nv 0 0 0\nv 1 0 0\nv 0 0 1\nusemtl x\nf 1 2 3\n").unwrap();
+    let shape = "[[shapes]]\ntype = \"obj\"\nfile = \"mtl.obj\"\nmaterial = \"floor\"\n";
+    std::fs::write(d.join("mtl.toml"), tiny_scene("[8, 6]", shape)).unwrap();
+    let o = plexus_within(&["info", "mtl.toml"], d, 20);
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    let include = mitsuba("cam", "<include filename=\"fifo\"/>");
+    std::fs::write(d.join("inc.xml"), include).unwrap();
+    let o = plexus_within(&["info", "inc.xml"], d, 20);
+    assert_one_line_error(&o, &["fifo", "not a regular file"]);
+    mkfifo(&d.join("scene.toml"));
+    let o = plexus_within(&["info", "scene.toml"], d, 20);
+    assert_one_line_error(&o, &["scene.toml", "not a regular file"]);
+    mkfifo(&d.join("run.pxstate"));
+    let o = plexus_within(&["resume", "run.pxstate"], d, 20);
+    assert_one_line_error(&o, &["run.pxstate", "not a regular file"]);
+}
+
+/// XML nested 20,000 deep (it overflowed the stack) and includes that double at every level
+/// (2^30 elements without a cycle: it ran for minutes) are refused in seconds.
+#[test]
+fn deep_and_exploding_xml_is_refused() {
+    let dir = temp_dir("trust-xml-size");
+    let d = dir.path();
+    let deep = format!("{}{}", "<bsdf type=\"twosided\">".repeat(20_000), "</bsdf>".repeat(20_000));
+    std::fs::write(d.join("deep.xml"), mitsuba("cam", &deep)).unwrap();
+    let o = plexus_within(&["info", "deep.xml"], d, 30);
+    assert_one_line_error(&o, &["nested more than 256 deep"]);
+
+    let mut level = mitsuba("cam", "");
+    std::fs::write(d.join("l0.xml"), &level).unwrap();
+    for k in 1..=30 {
+        let prev = format!("l{}.xml", k - 1);
+        level =
+            format!("<scene version=\"3.0.0\"><include filename=\"{prev}\"/><include filename=\"{prev}\"/></scene>\n");
+        std::fs::write(d.join(format!("l{k}.xml")), &level).unwrap();
+    }
+    let o = plexus_within(&["info", "l30.xml"], d, 60);
+    assert_one_line_error(&o, &["elements", "refused as unbounded"]);
+}
+
+/// A `.serialized` header declaring 2^31 triangles in 80 bytes is an error, not an abort on a
+/// 24 GiB allocation.
+#[test]
+fn a_serialized_header_cannot_size_an_allocation() {
+    let dir = temp_dir("trust-serialized-size");
+    let d = dir.path();
+    let mut body = Vec::new();
+    body.extend_from_slice(&0u32.to_le_bytes());
+    body.extend_from_slice(b"m\0");
+    body.extend_from_slice(&3u64.to_le_bytes());
+    body.extend_from_slice(&(1u64 << 31).to_le_bytes());
+    for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0] {
+        body.extend_from_slice(&v.to_le_bytes());
+    }
+    let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+    z.write_all(&body).unwrap();
+    let mut data = vec![0x1C, 0x04, 4, 0];
+    data.extend_from_slice(&z.finish().unwrap());
+    data.extend_from_slice(&0u64.to_le_bytes());
+    data.extend_from_slice(&1u32.to_le_bytes());
+    std::fs::write(d.join("big.serialized"), &data).unwrap();
+    let shape = "<shape type=\"serialized\"><string name=\"filename\" value=\"big.serialized\"/></shape>";
+    std::fs::write(d.join("scene.xml"), mitsuba("cam", shape)).unwrap();
+    for verb in [&["info", "scene.xml"][..], &["import", "scene.xml"], &["render", "scene.xml", "--spp", "1"]] {
+        let o = plexus_within(verb, d, 30);
+        assert_one_line_error(&o, &["big.serialized"]);
+    }
+}
+
+/// What a state records is checked: a flipped bit, a relabelled shard, a scene changed in an
+/// included file, another sampling revision — each refused with one line where it resumed or
+/// merged with exit 0 before.
+#[test]
+fn states_are_checked_before_they_are_used() {
+    use plexus::state::StateFile;
+    let dir = temp_dir("trust-states");
+    let d = dir.path();
+    // The scene: an XML that includes the file holding its floor's colour.
+    let floor = |grey: &str| {
+        format!(
+            "<scene version=\"3.0.0\"><bsdf type=\"diffuse\" id=\"floor\"><rgb name=\"reflectance\" value=\"{grey}\"/></bsdf></scene>\n"
+        )
+    };
+    std::fs::write(d.join("floor.xml"), floor("0.5, 0.5, 0.5")).unwrap();
+    let scene = mitsuba("cam", "")
+        .replace("<scene version=\"3.0.0\">", "<scene version=\"3.0.0\"><include filename=\"floor.xml\"/>")
+        .replace(
+            "<bsdf type=\"diffuse\"><rgb name=\"reflectance\" value=\"0.5, 0.5, 0.5\"/></bsdf>",
+            "<ref id=\"floor\"/>",
+        );
+    assert!(scene.contains("<ref id=\"floor\"/>"));
+    std::fs::write(d.join("scene.xml"), scene).unwrap();
+    let base = ["render", "scene.xml", "--spp", "2000", "--threads", "1", "--out", "a.exr"];
+    let o = plexus_within(&[&base[..], &["--stop-at-pass", "1"]].concat(), d, 60);
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    let bytes = std::fs::read(d.join("a.pxstate")).unwrap();
+
+    // One flipped bit in the film.
+    let mut flipped = bytes.clone();
+    let at = flipped.len() / 2;
+    flipped[at] ^= 0x10;
+    std::fs::write(d.join("flipped.pxstate"), &flipped).unwrap();
+    let o = plexus_within(&["resume", "flipped.pxstate", "--out", "f.exr"], d, 60);
+    assert_one_line_error(&o, &["checksum"]);
+
+    // Another sampling revision.
+    let mut file = StateFile::from_bytes(&bytes, Path::new("a.pxstate")).unwrap();
+    file.header.sampling_revision += 1;
+    file.write(&d.join("old.pxstate")).unwrap();
+    let o = plexus_within(&["resume", "old.pxstate", "--out", "o.exr"], d, 60);
+    assert_one_line_error(&o, &["sampling revision"]);
+
+    // The included file changed: resuming would blend two scenes.
+    std::fs::write(d.join("floor.xml"), floor("0.9, 0.5, 0.5")).unwrap();
+    let o = plexus_within(&["resume", "a.pxstate"], d, 60);
+    assert_one_line_error(&o, &["another scene"]);
+    std::fs::write(d.join("floor.xml"), floor("0.5, 0.5, 0.5")).unwrap();
+    let o = plexus_within(&["resume", "a.pxstate"], d, 60);
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    // Shards 0/3 and 1/3, the second relabelled as 2/3 (and its checksum made anew): merge
+    // would sum shard 1 where shard 2 belongs.
+    let shard = |k: &str, out: &str| {
+        let args = ["render", "scene.xml", "--spp", "6", "--threads", "1", "--shard", k, "--out", out];
+        let o = plexus_within(&args, d, 60);
+        assert!(o.status.success(), "{}", stderr(&o));
+    };
+    shard("0/3", "s0.pxstate");
+    shard("1/3", "s1.pxstate");
+    shard("1/3", "s2.pxstate");
+    let mut relabelled = StateFile::read(&d.join("s2.pxstate")).unwrap();
+    relabelled.header.shard = Some("2/3".parse().unwrap());
+    relabelled.write(&d.join("s2.pxstate")).unwrap();
+    let o = plexus_within(&["merge", "s0.pxstate", "s1.pxstate", "s2.pxstate", "--out", "m.exr"], d, 60);
+    assert_one_line_error(&o, &["s2.pxstate", "labelled shard 2/3"]);
+    let mut beyond = StateFile::read(&d.join("s1.pxstate")).unwrap();
+    beyond.header.shard = Some(plexus::state::Shard { index: 7, count: 2 });
+    beyond.write(&d.join("s7.pxstate")).unwrap();
+    let o = plexus_within(&["merge", "s0.pxstate", "s7.pxstate", "--out", "m.exr"], d, 60);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
