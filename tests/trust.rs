@@ -460,3 +460,34 @@ fn states_are_checked_before_they_are_used() {
     let o = plexus_within(&["merge", "s0.pxstate", "s7.pxstate", "--out", "m.exr"], d, 60);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
+
+/// Values that mean nothing are refused, naming the value and its range, instead of rendering
+/// something else: a sun's date and place (month 13, hour 99, latitude 1000), wavelengths of
+/// ±1e30 nm, a roughness of 1e30 (which rendered with non-finite contributions dropped).
+#[test]
+fn meaningless_values_are_refused() {
+    let dir = temp_dir("trust-values");
+    let d = dir.path();
+    for (param, value, needle) in [
+        ("integer", "name=\"month\" value=\"13\"", "'month'"),
+        ("float", "name=\"hour\" value=\"99\"", "'hour'"),
+        ("float", "name=\"latitude\" value=\"1000\"", "'latitude'"),
+    ] {
+        let sun = format!("<emitter type=\"sun\"><{param} {value}/></emitter>");
+        std::fs::write(d.join("sun.xml"), mitsuba("cam", &sun)).unwrap();
+        let o = plexus_within(&["info", "sun.xml"], d, 30);
+        assert_one_line_error(&o, &[needle, "must be in"]);
+    }
+    for spectrum in ["-1e30:1, 500:1", "400:1, 1e30:1"] {
+        let bsdf =
+            format!("<bsdf type=\"diffuse\" id=\"s\"><spectrum name=\"reflectance\" value=\"{spectrum}\"/></bsdf>");
+        std::fs::write(d.join("spectrum.xml"), mitsuba("cam", &bsdf)).unwrap();
+        let o = plexus_within(&["info", "spectrum.xml"], d, 30);
+        assert_one_line_error(&o, &["wavelength", "nanometres"]);
+    }
+    let rough = "[materials.rough]\ntype = \"conductor\"\ncolour = 0.8\nroughness = 1e30\n\
+                 [[shapes]]\ntype = \"quad\"\nmaterial = \"rough\"\n";
+    std::fs::write(d.join("rough.toml"), tiny_scene("[8, 6]", rough)).unwrap();
+    let o = plexus_within(&["info", "rough.toml"], d, 30);
+    assert_one_line_error(&o, &["roughness", "[0, 100]"]);
+}

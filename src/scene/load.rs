@@ -686,8 +686,10 @@ impl Builder<'_> {
     fn roughness(&self, key: &str, r: Option<f32>) -> Result<f32, SceneError> {
         match r {
             None => Ok(DEFAULT_ROUGHNESS),
-            Some(a) if a >= 0.0 && a.is_finite() => Ok(a),
-            Some(a) => Err(self.err(key, format!("expected a number ≥ 0 (the GGX alpha), got {a}"))),
+            Some(a) if (0.0..=MAX_ROUGHNESS).contains(&a) => Ok(a),
+            Some(a) => {
+                Err(self.err(key, format!("expected a number in [0, {MAX_ROUGHNESS}] (the GGX alpha), got {a}")))
+            }
         }
     }
 
@@ -699,6 +701,12 @@ impl Builder<'_> {
         }
     }
 }
+
+/// The largest GGX α a material may have. At α = 1 the microfacets are already as rough as any
+/// measured surface, and far beyond it GGX is a cosine-like lobe that changes no more; past about
+/// 1e9 its α⁴ overflows f32 and contributions become non-finite. 100 keeps every rough material
+/// plexus renders far from that.
+pub const MAX_ROUGHNESS: f32 = 100.0;
 
 /// The smallest scene extent (in scene units) plexus renders correctly; see `Builder::check_scale`.
 pub const MIN_EXTENT: f32 = 1e-9;

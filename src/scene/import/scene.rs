@@ -502,15 +502,17 @@ fn emitter(e: &Rc<Obj>, toml_dir: &Path, w: &mut Warnings) -> Result<Option<Sect
                 Some(d) => d,
                 None => {
                     let t = sun::SunTime {
-                        year: e.int("year", 2010)?,
-                        month: e.int("month", 7)?,
-                        day: e.int("day", 10)?,
-                        hour: e.float("hour", 15.0)?,
-                        minute: e.float("minute", 0.0)?,
-                        second: e.float("second", 0.0)?,
-                        latitude: e.float("latitude", 35.6894)?,
-                        longitude: e.float("longitude", 139.6917)?,
-                        timezone: e.float("timezone", 9.0)?,
+                        // The ranges of a calendar date and a place on Earth (hour 24 is the
+                        // next midnight, a leap second is second 60).
+                        year: e.int_in("year", 2010, -4712..=9999)?,
+                        month: e.int_in("month", 7, 1..=12)?,
+                        day: e.int_in("day", 10, 1..=31)?,
+                        hour: e.float_in("hour", 15.0, 0.0..=24.0)?,
+                        minute: e.float_in("minute", 0.0, 0.0..=60.0)?,
+                        second: e.float_in("second", 0.0, 0.0..=61.0)?,
+                        latitude: e.float_in("latitude", 35.6894, -90.0..=90.0)?,
+                        longitude: e.float_in("longitude", 139.6917, -180.0..=360.0)?,
+                        timezone: e.float_in("timezone", 9.0, -14.0..=14.0)?,
                     };
                     let local = sun::sun_direction(&t);
                     to_world.unwrap_or(DMat4::IDENTITY).transform_vector3(local)
