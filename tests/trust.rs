@@ -491,3 +491,55 @@ fn meaningless_values_are_refused() {
     let o = plexus_within(&["info", "rough.toml"], d, 30);
     assert_one_line_error(&o, &["roughness", "[0, 100]"]);
 }
+
+/// Messages name what the user gave: a converted mesh the loader refuses is named by its
+/// `.serialized` file and shape index (not the temporary PLY nobody saw); resume's refusal of the
+/// state's own budget does not blame `--time`; a shard beyond the render's passes is refused
+/// instead of rendering nothing with exit 0.
+#[test]
+fn messages_name_what_the_user_gave() {
+    let dir = temp_dir("trust-messages");
+    let d = dir.path();
+    // A mesh whose triangle names vertex 5 of 3.
+    let mut body = Vec::new();
+    body.extend_from_slice(&0u32.to_le_bytes());
+    body.extend_from_slice(b"m\0");
+    body.extend_from_slice(&3u64.to_le_bytes());
+    body.extend_from_slice(&1u64.to_le_bytes());
+    for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0] {
+        body.extend_from_slice(&v.to_le_bytes());
+    }
+    for i in [0u32, 1, 5] {
+        body.extend_from_slice(&i.to_le_bytes());
+    }
+    let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+    z.write_all(&body).unwrap();
+    let mut data = vec![0x1C, 0x04, 4, 0];
+    data.extend_from_slice(&z.finish().unwrap());
+    data.extend_from_slice(&0u64.to_le_bytes());
+    data.extend_from_slice(&1u32.to_le_bytes());
+    std::fs::write(d.join("bad.serialized"), &data).unwrap();
+    let shape = "<shape type=\"serialized\"><string name=\"filename\" value=\"bad.serialized\"/></shape>";
+    std::fs::write(d.join("scene.xml"), mitsuba("cam", shape)).unwrap();
+    let o = plexus_within(&["info", "scene.xml"], d, 30);
+    let err = stderr(&o);
+    assert_one_line_error(&o, &["mesh 0 of", "bad.serialized"]);
+    assert!(!err.contains(".tmp") && !err.contains("bad_0.ply"), "{err}");
+
+    // 6 samples per pixel on 32×32 make one pass: shard 1/3 would render nothing.
+    std::fs::write(d.join("s.toml"), tiny_scene("[32, 32]", "")).unwrap();
+    let o = plexus_within(&["render", "s.toml", "--spp", "6", "--shard", "1/3", "--out", "s1.pxstate"], d, 30);
+    assert_one_line_error(&o, &["shard 1/3 would render nothing", "at most 1 shards"]);
+    assert!(!d.join("s1.pxstate").exists());
+
+    // A state whose own budget is out of range (as a damaged or hand-made one could be).
+    let o = plexus_within(&["render", "s.toml", "--spp", "700", "--out", "a.exr", "--stop-at-pass", "1"], d, 60);
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    let mut state = plexus::state::StateFile::read(&d.join("a.pxstate")).unwrap();
+    state.header.budget = plexus::integrator::Budget::SamplesPerPixel(u64::MAX);
+    state.write(&d.join("a.pxstate")).unwrap();
+    let o = plexus_within(&["resume", "a.pxstate"], d, 30);
+    let err = stderr(&o);
+    assert_one_line_error(&o, &["the state's budget"]);
+    assert!(!err.contains("--time"), "{err}");
+}

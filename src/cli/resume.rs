@@ -87,7 +87,12 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
             b => b,
         },
     };
-    let option = if args.spp.is_some() { "--spp" } else { "--time" };
+    // The budget's source, named in a refusal: an option given, else the state's own budget.
+    let option = match (args.spp, args.time) {
+        (Some(_), _) => "--spp",
+        (None, Some(_)) => "--time",
+        (None, None) => "the state's budget",
+    };
     super::check_render_limits(&loaded.scene, &h.integrator, &params, camera.width, camera.height, budget, option)?;
     let checkpoint_every = match args.checkpoint_every {
         Some(s) => {

@@ -85,7 +85,7 @@ pub fn convert(
         "Mesh and texture paths are relative to this file. What the import changed is noted at each table".into(),
         "and was printed as warnings.".into(),
     ];
-    Ok(Imported { toml: toml_out::write(&preamble, &sections), warnings: w })
+    Ok(Imported { toml: toml_out::write(&preamble, &sections), warnings: w, converted: converted.descriptions() })
 }
 
 /// Warns about every parameter of `obj` (and of nested helper objects) that nobody used.

@@ -142,6 +142,17 @@ impl ConvertedMeshes {
         ConvertedMeshes { dir: dir.to_path_buf(), written: HashMap::new() }
     }
 
+    /// Each PLY written or reused, with the mesh it holds in words ("mesh 2 of 'a/m.serialized'").
+    pub fn descriptions(&self) -> Vec<(PathBuf, String)> {
+        let mut d: Vec<(PathBuf, String)> = self
+            .written
+            .iter()
+            .map(|((source, index), ply)| (ply.clone(), format!("mesh {index} of '{}'", source.display())))
+            .collect();
+        d.sort();
+        d
+    }
+
     /// The PLY holding mesh `index` of `source` (already read as `mesh`), written if needed, and
     /// a note when it could not take its first-choice name.
     pub fn convert(&mut self, source: &Path, index: i64, mesh: &RawMesh) -> Result<(PathBuf, Option<String>), String> {
