@@ -40,6 +40,7 @@ fn cases() -> Vec<(&'static str, &'static str, &'static str, u64)> {
 fn header(integrator: &dyn Integrator, params: &str, job: &RenderJob, shard: Option<Shard>) -> StateHeader {
     StateHeader {
         plexus_version: plexus::state::PLEXUS_VERSION.into(),
+        sampling_revision: plexus::state::SAMPLING_REVISION,
         scene: "test".into(),
         scene_hash: "hash".into(),
         accel: "embree".into(),

@@ -87,7 +87,8 @@ pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
     }
     let stem = args.scene.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
     if let Some(csv) = &args.replot {
-        let text = std::fs::read_to_string(csv).map_err(|e| bad_input(format!("reading {}: {e}", csv.display())))?;
+        let text = plexus::input_file::read_regular_text(csv, plexus::input_file::MAX_SCENE_TEXT_BYTES)
+            .map_err(|e| bad_input(format!("reading {}: {e}", csv.display())))?;
         let records = parse_csv(&text).map_err(|e| bad_input(format!("{}: {e}", csv.display())))?;
         return write_reports(args, &stem, &records, None);
     }

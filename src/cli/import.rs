@@ -49,13 +49,28 @@ pub fn run(args: ImportArgs) -> anyhow::Result<()> {
         defines,
         skip_missing_meshes: args.skip_missing_meshes,
     };
+    if is_same_file(&out, &args.scene) {
+        return Err(bad_input(format!(
+            "--out '{}' is the scene being imported: choose another name for the TOML",
+            out.display()
+        )));
+    }
     let imported = import_mitsuba(&args.scene, &options).map_err(bad_input)?;
     print_warnings(&imported.warnings);
-    // The result must load: check it with the real loader before writing it.
-    std::fs::write(&out, &imported.toml).map_err(|e| bad_input(format!("cannot write '{}': {e}", out.display())))?;
+    // The result must load: check it with the real loader before anything is replaced, then write
+    // it through a temporary file renamed into place (which replaces a link, never its target).
     let name = out.display().to_string();
     let loaded = load_scene_str(&imported.toml, &out_dir, &name, None)
-        .map_err(|e| bad_input(format!("wrote {name}, but it does not load: {e}")))?;
+        .map_err(|e| bad_input(format!("the TOML for {name} does not load, so it was not written: {e}")))?;
+    plexus::interrupt::write_atomically(
+        &out,
+        false,
+        |e| bad_input(format!("cannot write '{}': {e}", out.display())),
+        |_, file| {
+            use std::io::Write;
+            file.write_all(imported.toml.as_bytes()).map_err(|e| bad_input(format!("cannot write '{name}': {e}")))
+        },
+    )?;
     let scene = &loaded.scene;
     eprintln!(
         "wrote {} ({} shapes, {} triangles, {} materials, {} lights; {} warnings)",
@@ -69,11 +84,26 @@ pub fn run(args: ImportArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Whether `a` and `b` are one file (the same device and inode; false when either is missing).
+fn is_same_file(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+        _ => false,
+    }
+}
+
 /// Every warning as one line on stderr.
 pub fn print_warnings(w: &Warnings) {
     for line in w.lines() {
         eprintln!("warning: {line}");
     }
+}
+
+/// [`load_any`], with every file the scene was made of (the scene's identity in state files).
+pub fn load_any_recorded(path: &Path, accel: Option<AccelKind>) -> anyhow::Result<(LoadedScene, Vec<PathBuf>)> {
+    let (loaded, files) = plexus::input_file::recording_reads(|| load_any(path, accel));
+    Ok((loaded?, files))
 }
 
 /// Loads a scene file: TOML, or Mitsuba XML (imported on the fly, its warnings printed).

@@ -42,6 +42,13 @@ pub fn run(args: MergeArgs) -> anyhow::Result<()> {
             plexus::state::PLEXUS_VERSION
         )));
     }
+    if h.sampling_revision != plexus::state::SAMPLING_REVISION {
+        return Err(bad_input(format!(
+            "the shards were rendered with sampling revision {}, this plexus samples with revision {}",
+            h.sampling_revision,
+            plexus::state::SAMPLING_REVISION
+        )));
+    }
     let params: toml::Table = toml::from_str(&h.params).map_err(bad_input)?;
     let integrator = integrator::create(&h.integrator, &params)?;
     if integrator.settings_json() != serde_json::from_str::<serde_json::Value>(&h.settings).unwrap_or_default() {

@@ -21,7 +21,9 @@ pub fn check_outputs(images: &[PathBuf], width: usize, height: usize) -> anyhow:
     Ok(())
 }
 
-fn check_stats_path(path: &Path) -> anyhow::Result<()> {
+/// A stats file replaces only what is absent or a stats file of an earlier render: `--out
+/// notes.png` must not destroy a `notes.json` of the user's.
+pub fn check_stats_path(path: &Path) -> anyhow::Result<()> {
     if path.is_dir() {
         return Err(bad_input(format!(
             "cannot write the stats file '{}': it is a directory (the stats go beside each image, \
@@ -29,7 +31,44 @@ fn check_stats_path(path: &Path) -> anyhow::Result<()> {
             path.display()
         )));
     }
+    let Ok(meta) = std::fs::symlink_metadata(path) else { return Ok(()) };
+    if !(meta.file_type().is_file() && is_render_record(path, meta.len())) {
+        return Err(bad_input(format!(
+            "'{}' exists and is not a plexus render record: the render's statistics (written beside \
+             each image, with the extension .json) would replace it; move it or choose another --out",
+            path.display()
+        )));
+    }
     Ok(())
+}
+
+/// Whether the regular file `path` of `len` bytes is a stats file plexus wrote (a JSON object
+/// with the keys every `RenderStats` has).
+fn is_render_record(path: &Path, len: u64) -> bool {
+    // Far above any stats file (a few kB); a larger file is someone else's.
+    const MAX_RECORD_BYTES: u64 = 1 << 24;
+    if len > MAX_RECORD_BYTES {
+        return false;
+    }
+    let Ok(text) = plexus::input_file::read_regular_text(path, MAX_RECORD_BYTES) else { return false };
+    let Ok(serde_json::Value::Object(record)) = serde_json::from_str::<serde_json::Value>(&text) else { return false };
+    ["plexus_version", "integrator", "budget", "outputs", "run"].iter().all(|k| record.contains_key(*k))
+}
+
+/// A name for the state an interrupted render saves without `--checkpoint`: `<stem>.pxstate`
+/// beside `image` if nothing is there, else `<stem>.<k>.pxstate` for the first free k, so that an
+/// unrelated state (another render's) is never replaced.
+pub fn free_interrupt_state_path(image: &Path) -> PathBuf {
+    let first = image.with_extension(super::state_io::STATE_EXTENSION);
+    let taken = |p: &Path| std::fs::symlink_metadata(p).is_ok();
+    if !taken(&first) {
+        return first;
+    }
+    let stem = image.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    (1u64..)
+        .map(|k| image.with_file_name(format!("{stem}.{k}.{}", super::state_io::STATE_EXTENSION)))
+        .find(|p| !taken(p))
+        .expect("some k is free")
 }
 
 /// Checks the state files a render will write (`--checkpoint`, `.pxstate` outputs): the same

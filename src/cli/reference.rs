@@ -63,6 +63,9 @@ pub fn run_reference(args: &ReferenceArgs) -> anyhow::Result<()> {
     };
     let threads = super::resolve_threads(args.threads, "--threads")?;
     check_output_path(&args.out).map_err(bad_input)?;
+    for path in stats_json::stats_paths(std::slice::from_ref(&args.out)) {
+        super::outputs::check_stats_path(&path)?;
+    }
     let load_start = Instant::now();
     let mut loaded = super::import::load_any(&args.scene, args.accel)?;
     if let Some((w, h)) = args.resolution {

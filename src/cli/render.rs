@@ -98,9 +98,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     }
 
     let load_start = Instant::now();
-    let loaded = match &args.scene {
-        Some(path) => super::import::load_any(path, args.accel)?,
-        None => builtin_cornell_box(args.accel)?,
+    let (loaded, scene_files) = match &args.scene {
+        Some(path) => super::import::load_any_recorded(path, args.accel)?,
+        None => (builtin_cornell_box(args.accel)?, Vec::new()),
     };
     let plan = resolve(&args, &loaded, &overrides)?;
     let integrator = integrator::create(&plan.integrator, &plan.params)?;
@@ -163,7 +163,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     {
         return Err(bad_input(integrator.no_state().to_string()));
     }
-    let scene_id = state_io::scene_identity(args.scene.as_deref())?;
+    let scene_id = state_io::scene_identity(args.scene.as_deref(), &scene_files)?;
     let load_time = load_start.elapsed().as_secs_f64();
 
     let scene = &loaded.scene;
@@ -178,8 +178,6 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         args.shard,
         &images,
     );
-    // Without --checkpoint an interrupted render still saves its state, beside its first image.
-    let interrupt_state = images.first().map(|p| p.with_extension(state_io::STATE_EXTENSION));
     let checkpoint_path = args.checkpoint.clone();
     let write_checkpoint = |state: plexus::state::RenderState| {
         if let Some(path) = &checkpoint_path {
@@ -225,6 +223,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
                 complete: true,
                 interrupted: false,
                 wall_time_s: 0.0,
+                units: None,
             },
         })
     };
@@ -232,8 +231,10 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let cpu_time = plexus::bench::timing::process_cpu_time().saturating_sub(cpu_start);
     let rendered = rendered?;
     let file = StateFile { header, state: rendered.state };
+    // Without --checkpoint an interrupted render still saves its state, beside its first image,
+    // under a name no other file has.
     if file.state.interrupted && state_paths.is_empty() {
-        state_paths.extend(interrupt_state);
+        state_paths.extend(images.first().map(|p| super::outputs::free_interrupt_state_path(p)));
     }
     let output = rendered.output;
     super::warnings::print_render_warnings(&output);

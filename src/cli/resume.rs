@@ -4,7 +4,7 @@
 //! updated in place (atomically) as the render goes on: at the end, on an interrupt, and every
 //! `--checkpoint-every` seconds.
 
-use std::path::PathBuf;
+use std::path::{Component, Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
@@ -57,8 +57,6 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
             )));
         }
     }
-    let (scene_name, hash) = state_io::scene_identity(scene_path.as_deref())?;
-    saved.check_resumable(&args.state, &hash).map_err(bad_input)?;
     let params: toml::Table =
         toml::from_str(&h.params).map_err(|e| bad_input(format!("{}: {e}", args.state.display())))?;
     let integrator = integrator::create(&h.integrator, &params)?;
@@ -71,10 +69,14 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
             integrator.settings_json()
         ))));
     }
-    let loaded = match &scene_path {
-        Some(path) => super::import::load_any(path, Some(accel))?,
-        None => builtin_cornell_box(Some(accel))?,
+    // The scene is loaded before its identity is checked: the identity covers every file loading
+    // opens (an included file, a mesh named through a `$name` default).
+    let (loaded, scene_files) = match &scene_path {
+        Some(path) => super::import::load_any_recorded(path, Some(accel))?,
+        None => (builtin_cornell_box(Some(accel))?, Vec::new()),
     };
+    let (scene_name, hash) = state_io::scene_identity(scene_path.as_deref(), &scene_files)?;
+    saved.check_resumable(&args.state, &hash).map_err(bad_input)?;
     let camera = &loaded.scene.camera;
     let budget = match (args.spp, args.time) {
         (Some(n), _) => Budget::SamplesPerPixel(n),
@@ -85,7 +87,12 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
             b => b,
         },
     };
-    let option = if args.spp.is_some() { "--spp" } else { "--time" };
+    // The budget's source, named in a refusal: an option given, else the state's own budget.
+    let option = match (args.spp, args.time) {
+        (Some(_), _) => "--spp",
+        (None, Some(_)) => "--time",
+        (None, None) => "the state's budget",
+    };
     super::check_render_limits(&loaded.scene, &h.integrator, &params, camera.width, camera.height, budget, option)?;
     let checkpoint_every = match args.checkpoint_every {
         Some(s) => {
@@ -95,11 +102,14 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    let images: Vec<PathBuf> = if args.out.is_empty() { h.outputs.clone() } else { args.out.clone() };
+    let images: Vec<PathBuf> =
+        if args.out.is_empty() { outputs_below_state(&args.state, &h.outputs)? } else { args.out.clone() };
     if images.iter().any(|p| is_state_path(p)) {
         return Err(bad_input("resume writes its state to the file it resumes; --out takes images"));
     }
     super::outputs::check_outputs(&images, camera.width as usize, camera.height as usize)?;
+    let names: Vec<String> = images.iter().map(|p| p.display().to_string()).collect();
+    eprintln!("resume {}: writes {}", args.state.display(), names.join(", "));
     let load_time = load_start.elapsed().as_secs_f64();
 
     let job = RenderJob { budget, seed: h.seed, threads: h.threads.max(1) };
@@ -154,4 +164,43 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
     let stats_files = state_io::write_stats(&images, &states, &stats)?;
     let written: Vec<PathBuf> = images.iter().chain(&states).chain(&stats_files).cloned().collect();
     state_io::finish(&stats, &written, &file, &states)
+}
+
+/// The outputs a state file names, as resume writes them without `--out`: only paths below the
+/// state file's directory (a state file may come from anywhere, so the paths in it are not trusted
+/// to name a place the user chose). Each must lie in that directory or below it, lexically (no
+/// `..`) and for real (no directory link leading out); the rest is refused, naming the path.
+fn outputs_below_state(state: &Path, outputs: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+    let dir = plexus::interrupt::directory_of(state);
+    let as_given = std::path::absolute(dir).map_err(|e| bad_input(format!("{}: {e}", state.display())))?;
+    let real = dir.canonicalize().map_err(|e| bad_input(format!("{}: {e}", state.display())))?;
+    let refuse = |p: &Path| {
+        bad_input(format!(
+            "{}: its output '{}' is not below the state file's directory, and resume writes only \
+             there unless told: give --out",
+            state.display(),
+            p.display()
+        ))
+    };
+    let mut below = Vec::with_capacity(outputs.len());
+    for p in outputs {
+        if p.components().any(|c| matches!(c, Component::ParentDir)) {
+            return Err(refuse(p));
+        }
+        let full = if p.is_absolute() { p.clone() } else { as_given.join(p) };
+        let rel = full.strip_prefix(&as_given).or_else(|_| full.strip_prefix(&real)).map_err(|_| refuse(p))?;
+        if rel.as_os_str().is_empty() {
+            return Err(refuse(p));
+        }
+        let path = dir.join(rel);
+        // The directory the image lands in, with every link resolved, is still below.
+        let parent = plexus::interrupt::directory_of(&path);
+        if let Ok(parent_real) = parent.canonicalize() {
+            if !parent_real.starts_with(&real) {
+                return Err(refuse(p));
+            }
+        }
+        below.push(path);
+    }
+    Ok(below)
 }

@@ -28,12 +28,12 @@ pub fn is_state_path(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case(STATE_EXTENSION))
 }
 
-/// The scene's hash for the state header: the file and every file it references, or the built-in
-/// scene's text.
-pub fn scene_identity(scene: Option<&Path>) -> anyhow::Result<(String, String)> {
+/// The scene's name and hash for the state header: the files it was loaded from (`files`, as
+/// `import::load_any_recorded` lists them), or the built-in scene's text.
+pub fn scene_identity(scene: Option<&Path>, files: &[PathBuf]) -> anyhow::Result<(String, String)> {
     match scene {
         Some(path) => {
-            let hash = plexus::state::scene_hash(path).map_err(bad_input)?;
+            let hash = plexus::state::scene_hash(files).map_err(bad_input)?;
             let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
             Ok((absolute.display().to_string(), hash))
         }
@@ -143,6 +143,7 @@ pub fn header(
 ) -> StateHeader {
     StateHeader {
         plexus_version: plexus::state::PLEXUS_VERSION.to_string(),
+        sampling_revision: plexus::state::SAMPLING_REVISION,
         scene: scene.0,
         scene_hash: scene.1,
         accel,

@@ -83,6 +83,10 @@ pub fn read_image_as_float(path: &Path) -> Result<ReadImage, ImageReadError> {
 
 /// Reads `path`; an 8-bit file as its codes when `codes_for_8_bit`, else as floats.
 fn read_image_with(path: &Path, codes_for_8_bit: bool) -> Result<ReadImage, ImageReadError> {
+    // OpenImageIO would block on a FIFO and read a device for ever: only a regular file is
+    // handed to it (and the read is recorded with the scene's other files).
+    crate::input_file::open_regular(path)
+        .map_err(|message| ImageReadError::Oiio { path: path.to_path_buf(), message })?;
     let c = c_path(path).map_err(|_| ImageReadError::InvalidPath { path: path.to_path_buf() })?;
     let shim = shim().map_err(|message| ImageReadError::OiioUnavailable { path: path.to_path_buf(), message })?;
     let mut msg = [0u8; 1024];

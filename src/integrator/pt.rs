@@ -84,6 +84,11 @@ impl Default for PtSettings {
     }
 }
 
+/// The most continuations a camera path may split into. One pass (a sample per pixel) costs about
+/// this many paths per pixel, and an interrupt waits for the pass: the bound keeps a pass to what
+/// an unsplit render of that many samples per pixel would take.
+pub const MAX_FIRST_BOUNCE_PATHS: u32 = 64;
+
 /// The path tracer.
 #[derive(Clone, Debug)]
 pub struct PathTracer {
@@ -101,8 +106,11 @@ impl PathTracer {
         if settings.max_depth == 0 {
             return Err(RenderError::Settings("pt: max_depth must be at least 1".into()));
         }
-        if settings.first_bounce_paths == 0 {
-            return Err(RenderError::Settings("pt: first_bounce_paths must be at least 1".into()));
+        if !(1..=MAX_FIRST_BOUNCE_PATHS).contains(&settings.first_bounce_paths) {
+            return Err(RenderError::Settings(format!(
+                "pt: first_bounce_paths must be in 1 ..= {MAX_FIRST_BOUNCE_PATHS}, not {}",
+                settings.first_bounce_paths
+            )));
         }
         if !(settings.rr_scale > 0.0 && settings.rr_scale.is_finite()) {
             return Err(RenderError::Settings(format!(
@@ -774,6 +782,9 @@ mod tests {
         let zero_paths: toml::Table = toml::from_str("first_bounce_paths = 0").expect("toml");
         let err = PathTracer::from_params(&zero_paths).expect_err("no paths").to_string();
         assert!(err.contains("first_bounce_paths"), "{err}");
+        let many: toml::Table = toml::from_str("first_bounce_paths = 65").expect("toml");
+        let err = PathTracer::from_params(&many).expect_err("too many paths").to_string();
+        assert!(err.contains("1 ..= 64"), "{err}");
         let t: toml::Table = toml::from_str("rr_scale = 1").expect("toml");
         assert_eq!(PathTracer::from_params(&t).expect("integer scale").settings.rr_scale, 1.0);
     }

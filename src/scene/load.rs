@@ -3,7 +3,7 @@
 //! scene asks for.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{Mat3, Mat4, Vec3};
@@ -48,8 +48,8 @@ pub struct RenderDesc {
 /// `accel` overrides the file's `[render] accel`.
 pub fn load_scene(path: &Path, accel: Option<AccelKind>) -> Result<LoadedScene, SceneError> {
     let name = path.display().to_string();
-    let text =
-        std::fs::read_to_string(path).map_err(|e| SceneError::Read { file: name.clone(), reason: e.to_string() })?;
+    let text = crate::input_file::read_regular_text(path, crate::input_file::MAX_SCENE_TEXT_BYTES)
+        .map_err(|reason| SceneError::Read { file: name.clone(), reason })?;
     let base = path.parent().unwrap_or(Path::new(""));
     let mut loaded = load_scene_str(&text, base, &name, accel)?;
     loaded.scene.source = Some(path.to_path_buf());
@@ -628,6 +628,24 @@ impl Builder<'_> {
                 ))
             }
         };
+        // A scene file may name its images, but only below the directory the render runs in: a
+        // downloaded scene must not make plexus write (or replace) a file anywhere else.
+        let mut outputs = Vec::with_capacity(r.output.len());
+        for o in r.output {
+            let path = PathBuf::from(&o);
+            let escapes = path.components().any(|c| !matches!(c, Component::Normal(_) | Component::CurDir));
+            if o.is_empty() || escapes {
+                return Err(self.err(
+                    "render.output",
+                    format!(
+                        "expected paths below the current directory (relative, without '..'), got {}; \
+                         give other places with --out",
+                        toml::Value::String(o)
+                    ),
+                ));
+            }
+            outputs.push(path);
+        }
         Ok(RenderDesc {
             integrator,
             integrator_params: params,
@@ -635,7 +653,7 @@ impl Builder<'_> {
             time,
             seed,
             threads,
-            outputs: r.output.into_iter().map(PathBuf::from).collect(),
+            outputs,
             accel: accel_override.or(r.accel).unwrap_or_default(),
         })
     }
@@ -668,8 +686,10 @@ impl Builder<'_> {
     fn roughness(&self, key: &str, r: Option<f32>) -> Result<f32, SceneError> {
         match r {
             None => Ok(DEFAULT_ROUGHNESS),
-            Some(a) if a >= 0.0 && a.is_finite() => Ok(a),
-            Some(a) => Err(self.err(key, format!("expected a number ≥ 0 (the GGX alpha), got {a}"))),
+            Some(a) if (0.0..=MAX_ROUGHNESS).contains(&a) => Ok(a),
+            Some(a) => {
+                Err(self.err(key, format!("expected a number in [0, {MAX_ROUGHNESS}] (the GGX alpha), got {a}")))
+            }
         }
     }
 
@@ -681,6 +701,12 @@ impl Builder<'_> {
         }
     }
 }
+
+/// The largest GGX α a material may have. At α = 1 the microfacets are already as rough as any
+/// measured surface, and far beyond it GGX is a cosine-like lobe that changes no more; past about
+/// 1e9 its α⁴ overflows f32 and contributions become non-finite. 100 keeps every rough material
+/// plexus renders far from that.
+pub const MAX_ROUGHNESS: f32 = 100.0;
 
 /// The smallest scene extent (in scene units) plexus renders correctly; see `Builder::check_scale`.
 pub const MIN_EXTENT: f32 = 1e-9;

@@ -24,11 +24,14 @@ pub struct RawMesh {
 /// Reads every object of an OBJ file into one mesh (polygons triangulated as fans). Normals and
 /// texture coordinates are kept only when every object has them for every vertex.
 pub fn load_obj(path: &Path) -> Result<RawMesh, String> {
-    // tobj reports a missing file without the OS reason; open it first for a better message (and
-    // refuse what is not a regular file: tobj would read `/dev/zero` into one endless line).
-    open_regular(path)?;
+    // Only a regular file is read (tobj would read `/dev/zero` into one endless line), and only
+    // it: materials are plexus's own, so an `mtllib` line opens nothing (it could name a device
+    // or a FIFO).
+    let (file, _) = open_regular(path)?;
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
-    let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| format!("invalid OBJ: {e}"))?;
+    let (models, _materials) =
+        tobj::load_obj_buf(&mut std::io::BufReader::new(file), &options, |_| Err(tobj::LoadError::OpenFileFailed))
+            .map_err(|e| format!("invalid OBJ: {e}"))?;
     let mut out = RawMesh::default();
     let mut normals = Vec::new();
     let mut uvs = Vec::new();

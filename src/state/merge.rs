@@ -24,6 +24,8 @@ pub fn merge_states(
         let (x, y) = (first_path.display(), path.display());
         let differs: Option<String> = if b.plexus_version != a.plexus_version {
             Some(format!("plexus versions ({} and {})", a.plexus_version, b.plexus_version))
+        } else if b.sampling_revision != a.sampling_revision {
+            Some(format!("sampling revisions ({} and {})", a.sampling_revision, b.sampling_revision))
         } else if b.scene_hash != a.scene_hash {
             Some(format!("scenes ({} and {})", a.scene, b.scene))
         } else if (&b.integrator, &b.params, &b.settings) != (&a.integrator, &a.params, &a.settings) {
@@ -43,6 +45,15 @@ pub fn merge_states(
         let Some(shard) = b.shard else {
             return mismatch(format!("{y} is a whole render, not a shard: its units overlap every shard's"));
         };
+        if shard.count == 0 || shard.index >= shard.count {
+            return mismatch(format!("{y} claims to be shard {shard}, which no render has"));
+        }
+        if file.state.units != Some(shard) {
+            return mismatch(format!(
+                "{y} is labelled shard {shard}, but its film holds the units of {}",
+                file.state.units.map_or("the whole render".to_string(), |s| format!("shard {s}"))
+            ));
+        }
         if a.shard.is_some_and(|s| s.count != shard.count) {
             return mismatch(format!(
                 "{x} and {y} split the render differently (shards {} and {shard})",
@@ -92,6 +103,7 @@ pub fn merge_states(
     let parts: Vec<&[u8]> = order.iter().map(|(_, f)| f.state.part.as_slice()).collect();
     state.part = merge_parts(&parts)?;
     state.wall_time_s = 0.0;
+    state.units = None;
     let header = StateHeader { threads: 0, shard: None, ..a.clone() };
     Ok(StateFile { header, state })
 }

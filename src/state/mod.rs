@@ -9,7 +9,9 @@
 //!
 //! `PXSTATE\n` (8 bytes), the format version (u32, little-endian), then the [`StateFile`] in
 //! `bincode` 1 (fixed-width little-endian integers and IEEE floats, so every f64 sum comes back bit
-//! for bit). The film is the bulk: 24 bytes per pixel (three f64 sums), 1.5 MiB at 256², 47.5 MiB
+//! for bit), then the SHA-256 of everything before it (32 bytes): a file whose bytes changed
+//! after it was written (a flipped bit, a truncated copy) is refused as damaged before any of it
+//! is used. The film is the bulk: 24 bytes per pixel (three f64 sums), 1.5 MiB at 256², 47.5 MiB
 //! at 1920×1080; MLT's per-depth layers multiply that by the depth count (`max_depth` + 1). The
 //! header carries the plexus version, the scene's hash (the scene file and every file it names,
 //! [`scene_hash`]), the integrator with the parameters it was created from and the settings in
@@ -50,10 +52,20 @@ pub const MAGIC: &[u8; 8] = b"PXSTATE\n";
 /// The layout version of the file; a reader refuses any other. 2: the MLT bootstrap's per-depth
 /// estimates carry their variances and depth 0's replicates, so a version-1
 /// MLT state would not decode; every older state is refused by version instead of as "damaged".
-pub const FORMAT_VERSION: u32 = 2;
+/// 3: the body is followed by its SHA-256.
+pub const FORMAT_VERSION: u32 = 3;
+/// Bytes of the trailing digest.
+const DIGEST_BYTES: usize = 32;
 /// The plexus version that writes state files: a state of another version is refused (its
 /// integrators may sample differently, so resuming would not continue the same render).
 pub const PLEXUS_VERSION: &str = env!("CARGO_PKG_VERSION");
+/// What the numbers of a render mean: which random numbers every integrator draws for what, and
+/// what its state holds. A state (checkpoint or shard) is resumed or merged only by a plexus of
+/// the same revision, since another revision would continue the render with other numbers and
+/// blend two estimators. Bump it with every change that moves an image rendered with the same
+/// scene, seed, settings and threads; `tests/golden.rs` renders each integrator once and fails
+/// until it is bumped (its table records the images of this revision).
+pub const SAMPLING_REVISION: u32 = 1;
 /// The largest state file read: far beyond any film the memory checks allow, small enough that a
 /// corrupt length prefix cannot make the reader allocate without bound.
 const MAX_STATE_BYTES: u64 = 1 << 40;
@@ -83,6 +95,8 @@ pub enum StateError {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StateHeader {
     pub plexus_version: String,
+    /// [`SAMPLING_REVISION`] of the plexus that wrote it.
+    pub sampling_revision: u32,
     /// The scene as given on the command line, made absolute (or `<built-in cornell-box>`).
     pub scene: String,
     /// SHA-256 of the scene file and every file it references ([`scene_hash`]).
@@ -129,6 +143,10 @@ pub struct RenderState {
     /// Seconds the render has taken so far, resumed runs included (0 in shards, whose bytes
     /// depend on their units only).
     pub wall_time_s: f64,
+    /// The units whose work the film and parts hold: a shard's (`None`: all), recorded by the
+    /// driver from the session it ran, apart from the header's label, so that a shard whose
+    /// header was relabelled is refused by merge instead of summed as another shard.
+    pub units: Option<Shard>,
 }
 
 /// A state file's contents.
@@ -175,18 +193,30 @@ impl StateFile {
     /// complete (removed on failure, and by the signal handler on a second interrupt).
     pub fn write(&self, path: &Path) -> Result<(), StateError> {
         let err = |source| StateError::Write { path: path.to_path_buf(), source };
-        let body = encode(self)?;
+        let bytes = self.to_bytes()?;
         crate::interrupt::write_atomically(path, false, err, |_, file| {
-            file.write_all(MAGIC).map_err(err)?;
-            file.write_all(&FORMAT_VERSION.to_le_bytes()).map_err(err)?;
-            file.write_all(&body).map_err(err)?;
+            file.write_all(&bytes).map_err(err)?;
             file.sync_data().map_err(err)
         })
     }
 
+    /// The file's bytes: magic, format version, body, digest.
+    pub fn to_bytes(&self) -> Result<Vec<u8>, StateError> {
+        use sha2::Digest;
+        let body = encode(self)?;
+        let mut bytes = Vec::with_capacity(12 + body.len() + DIGEST_BYTES);
+        bytes.extend_from_slice(MAGIC);
+        bytes.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        bytes.extend_from_slice(&body);
+        let digest = sha2::Sha256::digest(&bytes);
+        bytes.extend_from_slice(&digest);
+        Ok(bytes)
+    }
+
     /// Reads a state file, refusing anything but a complete file of this format version.
     pub fn read(path: &Path) -> Result<StateFile, StateError> {
-        let bytes = std::fs::read(path).map_err(|source| StateError::Read { path: path.to_path_buf(), source })?;
+        let bytes = crate::input_file::read_regular(path, u64::MAX)
+            .map_err(|e| StateError::Read { path: path.to_path_buf(), source: std::io::Error::other(e) })?;
         StateFile::from_bytes(&bytes, path)
     }
 
@@ -201,6 +231,15 @@ impl StateFile {
         if found != FORMAT_VERSION {
             return Err(StateError::FormatVersion { path: path.to_path_buf(), found });
         }
+        use sha2::Digest;
+        let damaged = |message: &str| StateError::Corrupt { path: path.to_path_buf(), message: message.to_string() };
+        let Some(body_end) = bytes.len().checked_sub(DIGEST_BYTES).filter(|&end| end >= 12) else {
+            return Err(damaged("too short to hold its checksum"));
+        };
+        if sha2::Sha256::digest(&bytes[..body_end]).as_slice() != &bytes[body_end..] {
+            return Err(damaged("its checksum does not match its contents (changed or damaged since it was written)"));
+        }
+        let bytes = &bytes[..body_end];
         use bincode::Options;
         let file: StateFile = bincode::DefaultOptions::new()
             .with_fixint_encoding()
@@ -227,6 +266,13 @@ impl StateFile {
             return Err(StateError::Mismatch(format!(
                 "{name} was written by plexus {}, this is plexus {PLEXUS_VERSION}: it cannot be resumed",
                 h.plexus_version
+            )));
+        }
+        if h.sampling_revision != SAMPLING_REVISION {
+            return Err(StateError::Mismatch(format!(
+                "{name} was rendered with sampling revision {}, this plexus samples with revision \
+                 {SAMPLING_REVISION}: it would continue with other random numbers, so it cannot be resumed",
+                h.sampling_revision
             )));
         }
         if h.scene_hash != scene_hash {

@@ -1,31 +1,26 @@
-//! The scene's identity in a state file: a SHA-256 over the scene file and every file it names, so
-//! that a checkpoint is refused when the scene or one of its meshes or textures has changed.
-//!
-//! Which files a scene references is read from the scene text itself, not from the loader: every
-//! quoted string (TOML `"..."` / `'...'`, XML attribute values) that names an existing regular
-//! file, relative to the scene's directory or absolute, is hashed (its path as written, then its
-//! bytes). That covers `file = "bunny.ply"`, texture tables and imported Mitsuba scenes without a
-//! list to keep in step with the loaders; a string that merely happens to name a file costs a read.
+//! The scene's identity in a state file: a SHA-256 over the bytes of every file the scene was
+//! made of, as the loader opened them (`input_file::recording_reads`: the scene file, files it
+//! includes, meshes, textures, environment maps), so that a checkpoint is refused when any of them
+//! has changed — including files named through an include or a `$name` default, which no reading
+//! of the top file's text would find.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
 use super::StateError;
 
-/// Hex SHA-256 of the scene file at `path` and of the files it references.
-pub fn scene_hash(path: &Path) -> Result<String, StateError> {
-    let read = |p: &Path| std::fs::read(p).map_err(|source| StateError::Read { path: p.to_path_buf(), source });
-    let text = read(path)?;
+/// Hex SHA-256 of the files a scene was loaded from, in the order the loader opened them. Only the
+/// bytes count, not where the files were: a scene moved with its files keeps its identity, and an
+/// imported scene's meshes converted to a temporary directory hash the same every time.
+pub fn scene_hash(files: &[impl AsRef<Path>]) -> Result<String, StateError> {
     let mut hasher = Sha256::new();
-    hasher.update(b"scene\0");
-    hasher.update((text.len() as u64).to_le_bytes());
-    hasher.update(&text);
-    let base = path.parent().unwrap_or(Path::new("."));
-    for (name, file) in referenced_files(&String::from_utf8_lossy(&text), base) {
-        let bytes = read(&file)?;
+    hasher.update(b"scene files\0");
+    for file in files {
+        let file = file.as_ref();
+        let bytes = crate::input_file::read_regular(file, u64::MAX)
+            .map_err(|e| StateError::Read { path: file.to_path_buf(), source: std::io::Error::other(e) })?;
         hasher.update(b"file\0");
-        hasher.update(name.as_bytes());
         hasher.update((bytes.len() as u64).to_le_bytes());
         hasher.update(&bytes);
     }
@@ -40,29 +35,6 @@ pub fn builtin_scene_hash() -> String {
     hex(&hasher.finalize())
 }
 
-/// Quoted strings of `text` naming existing regular files (relative to `base` unless absolute),
-/// sorted by name and without repeats.
-fn referenced_files(text: &str, base: &Path) -> Vec<(String, PathBuf)> {
-    let mut found: Vec<(String, PathBuf)> = Vec::new();
-    for quote in ['"', '\''] {
-        let mut parts = text.split(quote);
-        parts.next();
-        // Every other piece lies between a pair of quotes.
-        while let Some(inside) = parts.next() {
-            parts.next();
-            if inside.is_empty() || inside.len() > 4096 || inside.contains('\n') {
-                continue;
-            }
-            let candidate = base.join(inside);
-            if candidate.is_file() && !found.iter().any(|(n, _)| n == inside) {
-                found.push((inside.to_string(), candidate));
-            }
-        }
-    }
-    found.sort();
-    found
-}
-
 fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
@@ -71,22 +43,21 @@ fn hex(bytes: &[u8]) -> String {
 mod tests {
     use super::*;
 
-    /// The hash changes with the scene text and with the bytes of a file it references, and not
-    /// with a file it does not reference.
+    /// The hash changes with the bytes of any file the scene was made of, and not with their
+    /// places.
     #[test]
-    fn hash_covers_the_scene_and_its_files() {
+    fn hash_covers_every_file_read() {
         let dir = tempfile::tempdir().expect("temp dir");
-        let scene = dir.path().join("s.toml");
-        std::fs::write(&scene, "[[shapes]]\nfile = \"m.obj\"\nx = 'other.txt'\n").expect("write");
-        std::fs::write(dir.path().join("m.obj"), "v 0 0 0\n").expect("write");
-        let a = scene_hash(&scene).expect("hash");
-        std::fs::write(dir.path().join("unrelated.obj"), "v 1 1 1\n").expect("write");
-        assert_eq!(scene_hash(&scene).expect("hash"), a);
-        std::fs::write(dir.path().join("m.obj"), "v 0 0 1\n").expect("write");
-        let b = scene_hash(&scene).expect("hash");
+        let (scene, mesh) = (dir.path().join("s.toml"), dir.path().join("m.obj"));
+        std::fs::write(&scene, "[[shapes]]\nfile = \"m.obj\"\n").expect("write");
+        std::fs::write(&mesh, "v 0 0 0\n").expect("write");
+        let a = scene_hash(&[&scene, &mesh]).expect("hash");
+        std::fs::write(&mesh, "v 0 0 1\n").expect("write");
+        let b = scene_hash(&[&scene, &mesh]).expect("hash");
         assert_ne!(a, b);
-        std::fs::write(dir.path().join("other.txt"), "x").expect("write");
-        assert_ne!(scene_hash(&scene).expect("hash"), b, "single-quoted names count too");
-        assert_eq!(referenced_files("a = \"m.obj\" b = \"m.obj\"", dir.path()).len(), 1);
+        let moved = dir.path().join("elsewhere.obj");
+        std::fs::rename(&mesh, &moved).expect("rename");
+        assert_eq!(scene_hash(&[&scene, &moved]).expect("hash"), b);
+        assert_ne!(scene_hash(&[&scene]).expect("hash"), b);
     }
 }

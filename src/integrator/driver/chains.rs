@@ -201,6 +201,7 @@ impl<'s> ChainSession<'s> {
             complete,
             interrupted: false,
             wall_time_s: self.saved_seconds(wall.as_secs_f64()),
+            units: self.session.shard,
         })
     }
 

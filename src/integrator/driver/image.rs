@@ -307,6 +307,14 @@ impl<'a> ImageRender<'a> {
         if let Some(shard) = session.shard {
             self.passes = PassSet { index: shard.index, count: shard.count };
             if let Passes::Count(n) = self.plan.passes {
+                // A shard beyond the passes would render nothing and say it had succeeded.
+                if shard.index >= n {
+                    return Err(RenderError::Limit(format!(
+                        "shard {shard} would render nothing: this render has {n} passes ({} samples per pixel \
+                         each), so it splits into at most {n} shards",
+                        self.plan.spp_per_pass
+                    )));
+                }
                 self.progress.set_total(self.plan.spp_in_set(self.passes, n) * width as u64 * height as u64);
             }
         }
@@ -344,6 +352,7 @@ impl<'a> ImageRender<'a> {
             complete,
             interrupted: false,
             wall_time_s: if self.session.shard.is_some() { 0.0 } else { self.earlier_seconds + elapsed.as_secs_f64() },
+            units: self.session.shard,
         }
     }
 

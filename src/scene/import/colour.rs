@@ -76,6 +76,11 @@ pub fn parse_spectrum(s: &str, loc: &Loc) -> Result<Spectrum, ImportError> {
             return Err(ImportError::at(loc, format!("expected wavelength:value, got '{item}'")));
         };
         let (w, v) = (super::objects::parse_f64(w, loc)?, super::objects::parse_f64(v, loc)?);
+        // Wavelengths in nanometres: a spectrum beyond (0, 10^5] (far infrared) is not light a
+        // colour can be made of, and ±1e30 once passed unnoticed.
+        if !(w > 0.0 && w <= 1e5) {
+            return Err(ImportError::at(loc, format!("wavelength {w} is not in (0, 100000] nanometres")));
+        }
         if let Some(&(prev, _)) = pairs.last() {
             if w <= prev {
                 return Err(ImportError::at(loc, format!("wavelengths must increase, got {w} after {prev}")));

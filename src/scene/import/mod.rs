@@ -40,14 +40,24 @@ pub enum ImportError {
     /// The converted TOML did not load (a value out of the loader's range, a mesh it refused).
     #[error("{0}")]
     Scene(#[from] SceneError),
+    /// As `Scene`, its message rewritten to name what the user gave (a converted mesh's source).
+    #[error("{0}")]
+    Message(String),
 }
 
+/// Errors and warnings quote the file (ids, names, paths): each is kept to one line
+/// (`toml_out::one_line`), so a file cannot print a second, made-up line of its own.
 impl ImportError {
     pub fn at(loc: &Loc, message: impl Into<String>) -> ImportError {
-        ImportError::At { file: loc.file.to_string(), line: loc.line, message: message.into() }
+        let (file, message) = (toml_out::one_line(&loc.file).into_owned(), message.into());
+        ImportError::At { file, line: loc.line, message: toml_out::one_line(&message).into_owned() }
     }
     pub fn file(file: &str, message: impl Into<String>) -> ImportError {
-        ImportError::File { file: file.to_string(), message: message.into() }
+        let message = message.into();
+        ImportError::File {
+            file: toml_out::one_line(file).into_owned(),
+            message: toml_out::one_line(&message).into_owned(),
+        }
     }
 }
 
@@ -88,7 +98,7 @@ impl Warnings {
                         format!(" (and {} more: lines {}{etc})", n - 1, lines.join(", "))
                     }
                 };
-                format!("{}: {msg}{more}", locs[0])
+                toml_out::one_line(&format!("{}: {msg}{more}", locs[0])).into_owned()
             })
             .collect()
     }
@@ -113,6 +123,9 @@ pub struct ImportOptions {
 pub struct Imported {
     pub toml: String,
     pub warnings: Warnings,
+    /// The PLY files written for `.serialized` meshes, each with what it is ("mesh 2 of
+    /// 'a/m.serialized'"), for messages about them.
+    pub converted: Vec<(PathBuf, String)>,
 }
 
 /// Reads the Mitsuba scene at `path` and converts it to plexus TOML.
@@ -140,9 +153,46 @@ pub fn load_mitsuba(
     let imported = import_mitsuba(path, &options)?;
     let base = path.parent().unwrap_or(Path::new(""));
     let name = format!("{} (imported)", path.display());
-    let mut loaded = load_scene_str(&imported.toml, base, &name, accel)?;
+    // The converted meshes live in a temporary directory the user never sees: a message about one
+    // names its `.serialized` file and shape index instead.
+    let mut loaded = load_scene_str(&imported.toml, base, &name, accel).map_err(|e| {
+        let text = e.to_string();
+        let tmp_name = tmp.path().file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let named = name_converted_meshes(&text, &tmp_name, &imported.converted);
+        if named == text {
+            ImportError::Scene(e)
+        } else {
+            ImportError::Message(toml_out::one_line(&named).into_owned())
+        }
+    })?;
     loaded.scene.source = Some(path.to_path_buf());
+    // The importer writes no outputs (a Mitsuba file names none plexus takes); a rendered XML
+    // scene writes where the command line says, or beside the current directory's stem.
+    debug_assert!(loaded.render.outputs.is_empty());
+    loaded.render.outputs.clear();
     Ok((loaded, imported.warnings))
+}
+
+/// `message` with every path into the temporary directory `tmp_name` that holds a converted mesh
+/// (however the loader spelt the way there) replaced by what the mesh is (`converted`).
+fn name_converted_meshes(message: &str, tmp_name: &str, converted: &[(PathBuf, String)]) -> String {
+    let mut out = message.to_string();
+    for (ply, what) in converted {
+        let Some(file) = ply.file_name() else { continue };
+        let tail = format!("{tmp_name}/{}", file.to_string_lossy());
+        while let Some(i) = out.find(&tail) {
+            let start = out[..i].rfind(['\'', '"', ' ']).map_or(0, |j| j + 1);
+            let end = i + tail.len();
+            let quoted = start > 0 && matches!(out.as_bytes()[start - 1], b'\'' | b'"');
+            let (start, end) = if quoted && out.as_bytes().get(end) == Some(&out.as_bytes()[start - 1]) {
+                (start - 1, end + 1)
+            } else {
+                (start, end)
+            };
+            out.replace_range(start..end, what);
+        }
+    }
+    out
 }
 
 /// Whether `path` names a Mitsuba XML file (by its extension).

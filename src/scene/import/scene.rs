@@ -27,6 +27,7 @@ pub fn convert(
     let mut integrator = None;
     let mut shapes = Vec::new();
     let mut environment: Option<Section> = None;
+    let mut converted = serialized::ConvertedMeshes::new(mesh_dir);
     for obj in &objects.top {
         match obj.class.as_str() {
             "sensor" => {
@@ -38,7 +39,7 @@ pub fn convert(
             }
             "integrator" => integrator = Some(integrator_section(obj, &mut w)?),
             "shape" => {
-                if let Some(s) = shape(objects, obj, &mut materials, toml_dir, mesh_dir, skip_missing, &mut w)? {
+                if let Some(s) = shape(objects, obj, &mut materials, toml_dir, &mut converted, skip_missing, &mut w)? {
                     shapes.push(s);
                 }
             }
@@ -84,7 +85,7 @@ pub fn convert(
         "Mesh and texture paths are relative to this file. What the import changed is noted at each table".into(),
         "and was printed as warnings.".into(),
     ];
-    Ok(Imported { toml: toml_out::write(&preamble, &sections), warnings: w })
+    Ok(Imported { toml: toml_out::write(&preamble, &sections), warnings: w, converted: converted.descriptions() })
 }
 
 /// Warns about every parameter of `obj` (and of nested helper objects) that nobody used.
@@ -289,7 +290,7 @@ fn shape(
     s: &Rc<Obj>,
     materials: &mut Materials,
     toml_dir: &Path,
-    mesh_dir: &Path,
+    converted: &mut serialized::ConvertedMeshes,
     skip_missing: bool,
     w: &mut Warnings,
 ) -> Result<Option<Section>, ImportError> {
@@ -334,8 +335,10 @@ fn shape(
             let ply = if path.is_file() {
                 let mesh = serialized::read(&path, index as usize)
                     .map_err(|e| ImportError::at(&s.loc, format!("mesh '{}': {e}", path.display())))?;
-                let out = mesh_dir.join(&ply_name);
-                serialized::write_ply(&out, &mesh).map_err(|e| ImportError::at(&s.loc, e))?;
+                let (out, note) = converted.convert(&path, index, &mesh).map_err(|e| ImportError::at(&s.loc, e))?;
+                if let Some(note) = note {
+                    w.warn(&s.loc, note);
+                }
                 out
             } else {
                 // The PLY this conversion writes, made earlier (e.g. shipped without the original).
@@ -499,15 +502,17 @@ fn emitter(e: &Rc<Obj>, toml_dir: &Path, w: &mut Warnings) -> Result<Option<Sect
                 Some(d) => d,
                 None => {
                     let t = sun::SunTime {
-                        year: e.int("year", 2010)?,
-                        month: e.int("month", 7)?,
-                        day: e.int("day", 10)?,
-                        hour: e.float("hour", 15.0)?,
-                        minute: e.float("minute", 0.0)?,
-                        second: e.float("second", 0.0)?,
-                        latitude: e.float("latitude", 35.6894)?,
-                        longitude: e.float("longitude", 139.6917)?,
-                        timezone: e.float("timezone", 9.0)?,
+                        // The ranges of a calendar date and a place on Earth (hour 24 is the
+                        // next midnight, a leap second is second 60).
+                        year: e.int_in("year", 2010, -4712..=9999)?,
+                        month: e.int_in("month", 7, 1..=12)?,
+                        day: e.int_in("day", 10, 1..=31)?,
+                        hour: e.float_in("hour", 15.0, 0.0..=24.0)?,
+                        minute: e.float_in("minute", 0.0, 0.0..=60.0)?,
+                        second: e.float_in("second", 0.0, 0.0..=61.0)?,
+                        latitude: e.float_in("latitude", 35.6894, -90.0..=90.0)?,
+                        longitude: e.float_in("longitude", 139.6917, -180.0..=360.0)?,
+                        timezone: e.float_in("timezone", 9.0, -14.0..=14.0)?,
                     };
                     let local = sun::sun_direction(&t);
                     to_world.unwrap_or(DMat4::IDENTITY).transform_vector3(local)

@@ -7,8 +7,9 @@
 //! the indices (u32, or u64 past 2^32 vertices). The file ends with a table of the meshes' byte
 //! offsets (`u64` in version 4, `u32` in version 3) and a `u32` count. All little-endian.
 
+use std::collections::HashMap;
 use std::io::{Read, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
@@ -22,7 +23,7 @@ const DOUBLE: u32 = 0x2000;
 
 /// Reads mesh `index` of the `.serialized` file at `path`.
 pub fn read(path: &Path, index: usize) -> Result<RawMesh, String> {
-    let data = std::fs::read(path).map_err(|e| e.to_string())?;
+    let data = crate::input_file::read_regular(path, u64::MAX)?;
     if data.len() < 8 {
         return Err("too short for a serialized mesh file".into());
     }
@@ -78,7 +79,9 @@ pub fn read(path: &Path, index: usize) -> Result<RawMesh, String> {
         floats(3 * nv)?;
     }
     let wide = nv > u32::MAX as usize;
-    let mut indices = Vec::with_capacity(nt);
+    // The counts are the file's word: reserve no more than its compressed bytes could be (a
+    // truncated stream then ends the read with an error long before memory runs out).
+    let mut indices = Vec::with_capacity(nt.min(data.len()));
     for _ in 0..nt {
         let mut tri = [0u32; 3];
         for slot in &mut tri {
@@ -116,8 +119,106 @@ impl<R: Read> Stream<'_, R> {
     }
 }
 
-/// Writes `mesh` as a binary little-endian PLY (positions, normals and uvs when present).
-pub fn write_ply(path: &Path, mesh: &RawMesh) -> Result<(), String> {
+/// Where an import writes the PLY files of the `.serialized` meshes it converts, and what it
+/// wrote. Invariants: it never writes through a symbolic link and never replaces a file it did not
+/// create in this import; each (file, shape index) gets its own PLY, so two `.serialized` files of
+/// the same name in different directories cannot share one. A name already taken on disk is kept
+/// as it is: reused when it holds exactly the bytes this conversion makes (a second import of the
+/// same scene), otherwise the mesh goes to the next free name `<stem>_<index>-<k>.ply`, with a
+/// warning. Each file is written to a temporary file and linked into place only if the name is
+/// still free, so a file that appears meanwhile is not replaced either.
+#[derive(Debug)]
+pub struct ConvertedMeshes {
+    dir: PathBuf,
+    /// (source file, shape index) → the PLY written or reused for it.
+    written: HashMap<(PathBuf, i64), PathBuf>,
+}
+
+/// How many other names a conversion tries before giving up.
+const MAX_NAME_TRIES: usize = 1000;
+
+impl ConvertedMeshes {
+    pub fn new(dir: &Path) -> ConvertedMeshes {
+        ConvertedMeshes { dir: dir.to_path_buf(), written: HashMap::new() }
+    }
+
+    /// Each PLY written or reused, with the mesh it holds in words ("mesh 2 of 'a/m.serialized'").
+    pub fn descriptions(&self) -> Vec<(PathBuf, String)> {
+        let mut d: Vec<(PathBuf, String)> = self
+            .written
+            .iter()
+            .map(|((source, index), ply)| (ply.clone(), format!("mesh {index} of '{}'", source.display())))
+            .collect();
+        d.sort();
+        d
+    }
+
+    /// The PLY holding mesh `index` of `source` (already read as `mesh`), written if needed, and
+    /// a note when it could not take its first-choice name.
+    pub fn convert(&mut self, source: &Path, index: i64, mesh: &RawMesh) -> Result<(PathBuf, Option<String>), String> {
+        let key = (source.to_path_buf(), index);
+        if let Some(path) = self.written.get(&key) {
+            return Ok((path.clone(), None));
+        }
+        let bytes = ply_bytes(mesh);
+        let stem = source.file_stem().map(|x| x.to_string_lossy().into_owned()).unwrap_or_default();
+        let first = self.dir.join(format!("{stem}_{index}.ply"));
+        for k in 0..MAX_NAME_TRIES {
+            let path = if k == 0 { first.clone() } else { self.dir.join(format!("{stem}_{index}-{}.ply", k + 1)) };
+            if self.written.values().any(|p| *p == path) {
+                continue;
+            }
+            let placed = match std::fs::symlink_metadata(&path) {
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => write_new(&path, &bytes)?,
+                Err(e) => return Err(format!("cannot check '{}': {e}", path.display())),
+                // Only a regular file (not a link, FIFO or device) is read, and only to compare.
+                Ok(meta) => {
+                    meta.file_type().is_file()
+                        && meta.len() == bytes.len() as u64
+                        && std::fs::read(&path).is_ok_and(|existing| existing == bytes)
+                }
+            };
+            if placed {
+                let note = (k > 0).then(|| {
+                    format!(
+                        "'{}' exists and holds something else: mesh {index} of '{}' was written to '{}'",
+                        first.display(),
+                        source.display(),
+                        path.display()
+                    )
+                });
+                self.written.insert(key, path.clone());
+                return Ok((path, note));
+            }
+        }
+        Err(format!(
+            "cannot convert mesh {index} of '{}': '{}' and {} other names beside it are taken",
+            source.display(),
+            first.display(),
+            MAX_NAME_TRIES - 1
+        ))
+    }
+}
+
+/// Writes `bytes` to the new file `path` through a temporary file that is linked into place only
+/// if `path` still does not exist. False when it has appeared meanwhile (left as it is).
+fn write_new(path: &Path, bytes: &[u8]) -> Result<bool, String> {
+    let dir = crate::interrupt::directory_of(path);
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".plexus-import-")
+        .suffix(".ply")
+        .tempfile_in(dir)
+        .map_err(|e| format!("cannot write in '{}': {e}", dir.display()))?;
+    tmp.write_all(bytes).map_err(|e| format!("cannot write '{}': {e}", path.display()))?;
+    match tmp.persist_noclobber(path) {
+        Ok(_) => Ok(true),
+        Err(e) if e.error.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
+        Err(e) => Err(format!("cannot write '{}': {}", path.display(), e.error)),
+    }
+}
+
+/// `mesh` as a binary little-endian PLY (positions, normals and uvs when present).
+pub fn ply_bytes(mesh: &RawMesh) -> Vec<u8> {
     let mut out = Vec::new();
     let mut header = format!("ply\nformat binary_little_endian 1.0\ncomment converted by plexus import\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n", mesh.positions.len());
     if mesh.normals.is_some() {
@@ -152,8 +253,7 @@ pub fn write_ply(path: &Path, mesh: &RawMesh) -> Result<(), String> {
             out.extend_from_slice(&(*i as i32).to_le_bytes());
         }
     }
-    let mut f = std::fs::File::create(path).map_err(|e| format!("cannot create '{}': {e}", path.display()))?;
-    f.write_all(&out).map_err(|e| format!("cannot write '{}': {e}", path.display()))
+    out
 }
 
 #[cfg(test)]
@@ -222,7 +322,7 @@ pub(crate) mod tests {
             assert_eq!(got.indices, want.indices);
             assert_eq!(got.normals, want.normals);
             let ply = dir.path().join(format!("m_{k}.ply"));
-            write_ply(&ply, &got).unwrap();
+            std::fs::write(&ply, ply_bytes(&got)).unwrap();
             let back = crate::scene::mesh_io::load_ply(&ply).unwrap();
             assert_eq!(back.positions, want.positions);
             assert_eq!(back.indices, want.indices);
@@ -235,5 +335,43 @@ pub(crate) mod tests {
         }
         std::fs::write(&path, bytes).unwrap();
         assert!(read(&path, 0).is_err());
+    }
+
+    /// A conversion never writes through a link, never replaces a file it did not write (reusing
+    /// one only when it holds the same bytes), and gives same-named sources their own files.
+    #[test]
+    fn conversions_never_replace_or_write_through_links() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let meshes = two_meshes();
+        let victim = d.join("victim.txt");
+        std::fs::write(&victim, "keep me").unwrap();
+        std::os::unix::fs::symlink(&victim, d.join("m_0.ply")).unwrap();
+        std::fs::write(d.join("m_1.ply"), "the user's own mesh").unwrap();
+        let mut out = ConvertedMeshes::new(d);
+        let (a, note) = out.convert(Path::new("a/m.serialized"), 0, &meshes[0]).unwrap();
+        assert_eq!(a, d.join("m_0-2.ply"));
+        assert!(note.unwrap().contains("m_0.ply' exists"));
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep me");
+        let (b, _) = out.convert(Path::new("a/m.serialized"), 1, &meshes[1]).unwrap();
+        assert_eq!(b, d.join("m_1-2.ply"));
+        assert_eq!(std::fs::read_to_string(d.join("m_1.ply")).unwrap(), "the user's own mesh");
+        // Another directory's m.serialized, mesh 0: its own file, not a replacement of a's.
+        let (c, _) = out.convert(Path::new("b/m.serialized"), 0, &meshes[1]).unwrap();
+        assert_eq!(c, d.join("m_0-3.ply"));
+        assert_eq!(std::fs::read(&a).unwrap(), ply_bytes(&meshes[0]));
+        assert_eq!(std::fs::read(&c).unwrap(), ply_bytes(&meshes[1]));
+        // The same mesh again: the same file.
+        assert_eq!(out.convert(Path::new("a/m.serialized"), 0, &meshes[0]).unwrap().0, a);
+        // A second import of the same scene reuses the identical files it finds (still saying
+        // why the first-choice name was not taken).
+        let mut again = ConvertedMeshes::new(d);
+        assert_eq!(again.convert(Path::new("a/m.serialized"), 0, &meshes[0]).unwrap().0, a);
+        let (b_again, note) = again.convert(Path::new("a/m.serialized"), 1, &meshes[1]).unwrap();
+        assert_eq!((b_again, note.is_some()), (b, true));
+        let leftovers = std::fs::read_dir(d)
+            .unwrap()
+            .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().starts_with(".plexus-import-"));
+        assert_eq!(leftovers.count(), 0);
     }
 }

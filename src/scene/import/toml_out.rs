@@ -42,6 +42,29 @@ fn number(v: f64) -> String {
     }
 }
 
+/// `text` with every control character (line breaks included) written as a `\u{..}` escape, so it
+/// stays on one line of a comment or a message whatever the file it came from contains. TOML
+/// allows no control character but tab in a comment; tab is escaped too, for messages.
+pub fn one_line(text: &str) -> std::borrow::Cow<'_, str> {
+    if !text.chars().any(is_line_unsafe) {
+        return std::borrow::Cow::Borrowed(text);
+    }
+    let mut out = String::with_capacity(text.len() + 8);
+    for c in text.chars() {
+        if is_line_unsafe(c) {
+            let _ = write!(out, "\\u{{{:x}}}", c as u32);
+        } else {
+            out.push(c);
+        }
+    }
+    std::borrow::Cow::Owned(out)
+}
+
+/// Control characters (C0, DEL, C1) and the Unicode line and paragraph separators.
+fn is_line_unsafe(c: char) -> bool {
+    c.is_control() || c == '\u{2028}' || c == '\u{2029}'
+}
+
 /// A bare key when TOML allows one, else a quoted one.
 pub fn key(k: &str) -> String {
     if !k.is_empty() && k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
@@ -110,16 +133,18 @@ impl Section {
     }
 }
 
-/// Writes `sections` after the `preamble` comment lines.
+/// Writes `sections` after the `preamble` comment lines. Comments carry text copied from the
+/// Mitsuba file (ids, file names), so each is made one line first ([`one_line`]): a line break in
+/// an id would otherwise end the comment and let the rest of the id be read as TOML.
 pub fn write(preamble: &[String], sections: &[Section]) -> String {
     let mut out = String::new();
     for line in preamble {
-        let _ = writeln!(out, "# {line}");
+        let _ = writeln!(out, "# {}", one_line(line));
     }
     for s in sections {
         out.push('\n');
         for c in &s.comments {
-            let _ = writeln!(out, "# {c}");
+            let _ = writeln!(out, "# {}", one_line(c));
         }
         if s.array {
             let _ = writeln!(out, "[[{}]]", s.header);
@@ -155,5 +180,21 @@ mod tests {
         assert_eq!(m["ior"].as_float(), Some(1.5));
         assert_eq!(m["transform"]["matrix"][0][1].as_float(), Some(2e-9));
         assert_eq!(key("a b"), "\"a b\"");
+    }
+
+    /// Text copied into comments cannot add TOML: a line break (or any control character) in an
+    /// id is escaped, so the comment stays one line and the file parses to the same tables.
+    #[test]
+    fn comments_cannot_inject_toml() {
+        let injected = "cam\n[render]\noutput = [\"/elsewhere/x.png\"]\r\u{2028}\u{85}";
+        let mut s = Section::new("camera");
+        s.comments.push(format!("<sensor id=\"{injected}\">"));
+        s.set("fov", TVal::Num(40.0));
+        let text = write(&[format!("from {injected}")], &[s]);
+        let t: toml::Table = toml::from_str(&text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+        assert_eq!(t.keys().collect::<Vec<_>>(), ["camera"], "{text}");
+        assert_eq!(text.lines().filter(|l| l.starts_with('#')).count(), 2, "{text}");
+        assert!(text.contains("cam\\u{a}[render]\\u{a}output"), "{text}");
+        assert_eq!(one_line("plain text"), "plain text");
     }
 }

@@ -66,7 +66,7 @@ pub fn snake_case(name: &str) -> String {
 /// Reads `path` (a `<scene>` document) with its includes. `defines` are `$name` values given by the
 /// caller; they take precedence over the file's `<default>`s, as Mitsuba's `-D` does.
 pub fn read_scene(path: &Path, defines: &HashMap<String, String>) -> Result<Element, ImportError> {
-    let mut reader = Reader { defines: defines.clone(), stack: Vec::new() };
+    let mut reader = Reader { defines: defines.clone(), stack: Vec::new(), elements: 0, depth: 0 };
     let root = reader.read_file(path, None)?;
     if root.tag != "scene" {
         return Err(ImportError::at(&root.loc, format!("expected a <scene> root element, got <{}>", root.tag)));
@@ -79,18 +79,30 @@ struct Reader {
     defines: HashMap<String, String>,
     /// Files being read, to refuse include cycles.
     stack: Vec<PathBuf>,
+    /// Elements read so far, all files together, against `MAX_ELEMENTS`.
+    elements: usize,
+    /// Element nesting of the element being converted, includes counted through.
+    depth: usize,
 }
+
+/// Deeper nesting than any scene has (Mitsuba's nest a few levels: shape, bsdf, texture, ...); a
+/// deeper file is refused before the recursive conversion could exhaust the stack.
+const MAX_DEPTH: usize = 256;
+/// Elements in all, includes counted each time they are included: a scene that includes a file
+/// twice that includes another twice, and so on, doubles at every level without a cycle.
+const MAX_ELEMENTS: usize = 1 << 22;
 
 impl Reader {
     fn read_file(&mut self, path: &Path, from: Option<&Loc>) -> Result<Element, ImportError> {
         let name: Arc<str> = Arc::from(path.display().to_string());
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            let msg = format!("cannot read '{}': {e}", path.display());
-            match from {
-                Some(loc) => ImportError::at(loc, msg),
-                None => ImportError::file(&name, msg),
-            }
-        })?;
+        let text =
+            crate::input_file::read_regular_text(path, crate::input_file::MAX_SCENE_TEXT_BYTES).map_err(|e| {
+                let msg = format!("cannot read '{}': {e}", path.display());
+                match from {
+                    Some(loc) => ImportError::at(loc, msg),
+                    None => ImportError::file(&name, msg),
+                }
+            })?;
         let canonical = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
         if self.stack.contains(&canonical) {
             let loc = from.cloned().unwrap_or(Loc { file: name.clone(), line: 1 });
@@ -131,6 +143,30 @@ impl Reader {
         dir: &Arc<Path>,
     ) -> Result<Element, ImportError> {
         let loc = loc_of(doc, &node, file);
+        self.elements += 1;
+        if self.elements > MAX_ELEMENTS {
+            return Err(ImportError::at(
+                &loc,
+                format!("more than {MAX_ELEMENTS} elements (includes counted each time): refused as unbounded"),
+            ));
+        }
+        if self.depth >= MAX_DEPTH {
+            return Err(ImportError::at(&loc, format!("elements nested more than {MAX_DEPTH} deep")));
+        }
+        self.depth += 1;
+        let converted = self.convert_children(doc, node, file, dir, loc);
+        self.depth -= 1;
+        converted
+    }
+
+    fn convert_children(
+        &mut self,
+        doc: &roxmltree::Document,
+        node: roxmltree::Node,
+        file: &Arc<str>,
+        dir: &Arc<Path>,
+        loc: Loc,
+    ) -> Result<Element, ImportError> {
         let mut attrs = Vec::new();
         for a in node.attributes() {
             attrs.push((a.name().to_string(), self.substitute(a.value(), &loc)?));
