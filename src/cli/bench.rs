@@ -179,7 +179,7 @@ fn markdown_table(report: &BenchReport) -> String {
             );
         }
     }
-    s += "\nBVH / Embree rows: speed ratios (issue 20's target ≥ 0.67): build, Embree's time over the BVH's (wall, \
+    s += "\nBVH / Embree rows: speed ratios (target ≥ 0.67): build, Embree's time over the BVH's (wall, \
           and CPU in parentheses); rays, the BVH's rate over Embree's.\n";
     s += &format!(
         "\nMemory: BVH {:.1} MB ({} nodes), Embree {:.1} MB.\n",
