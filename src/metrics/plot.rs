@@ -80,8 +80,9 @@ fn series(
     pts
 }
 
-/// Colours chosen to stay distinguishable for common colour vision deficiencies (Okabe–Ito).
-const COLOURS: [RGBColor; 7] = [
+/// Colours chosen to stay distinguishable for common colour vision deficiencies (Okabe–Ito): all
+/// eight, one per integrator, so no two integrators of `converge --integrators all` share one.
+const COLOURS: [RGBColor; 8] = [
     RGBColor(0, 114, 178),
     RGBColor(213, 94, 0),
     RGBColor(0, 158, 115),
@@ -89,6 +90,7 @@ const COLOURS: [RGBColor; 7] = [
     RGBColor(230, 159, 0),
     RGBColor(86, 180, 233),
     RGBColor(0, 0, 0),
+    RGBColor(240, 228, 66),
 ];
 
 /// Draws the panels side by side into a PNG at `path`: x = mean wall time (s), y = error, both
