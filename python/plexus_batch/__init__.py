@@ -3,8 +3,19 @@
 __version__ = "0.1.0"
 
 from .batchfile import Batch, BatchError, Job, load  # noqa: E402
+from .report import BatchInterrupted, BatchReport, JobReport  # noqa: E402
 
-__all__ = ["Batch", "BatchError", "Job", "load", "run_batch", "__version__"]
+__all__ = [
+    "Batch",
+    "BatchError",
+    "BatchInterrupted",
+    "BatchReport",
+    "Job",
+    "JobReport",
+    "load",
+    "run_batch",
+    "__version__",
+]
 
 
 def run_batch(*args, **kwargs):

@@ -19,6 +19,7 @@ threads = 1                     # optional; threads of each shard's render; defa
 settings = { max_depth = 8 }    # optional; integrator settings, passed as --set key=value
 outputs = ["out/box.exr", "out/box.png"]   # optional; default ["<name>.exr"]
 shards = 8                      # optional; default 1
+timeout = 600                   # optional; seconds one run (a shard or the merge) may take; 0: none
 ```
 
 Relative paths are relative to the batch file's directory and are made absolute here, because the
@@ -49,9 +50,14 @@ class BatchError(ValueError):
 # check; here only what the batch itself needs: positive counts that fit plexus's u64/u32 options.
 MAX_SHARDS = 1 << 20
 MAX_U64 = (1 << 64) - 1
+# The timeout of a job that sets none: a shard is meant to be minutes of work (docs/batch.md, "How
+# many shards"), and an hour bounds what a hung run holds a worker for.
+DEFAULT_TIMEOUT_S = 3600.0
+# A year: more is a typo, and larger values overflow the wait of threading primitives.
+MAX_TIMEOUT_S = 365 * 24 * 3600.0
 
 TOP_KEYS = ("shard_dir", "keep_shards", "defaults", "jobs")
-JOB_KEYS = ("name", "scene", "integrator", "spp", "seed", "threads", "settings", "outputs", "shards")
+JOB_KEYS = ("name", "scene", "integrator", "spp", "seed", "threads", "settings", "outputs", "shards", "timeout")
 DEFAULT_KEYS = tuple(k for k in JOB_KEYS if k not in ("name", "scene", "outputs"))
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 
@@ -69,6 +75,7 @@ class Job:
     integrator: str | None = None
     settings: dict[str, Any] = field(default_factory=dict)
     outputs: tuple[Path, ...] = ()
+    timeout: float | None = DEFAULT_TIMEOUT_S  # seconds per run of a shard or the merge; None: none
 
 
 @dataclass(frozen=True)
@@ -79,8 +86,11 @@ class Batch:
     keep_shards: bool = False
 
 
-def load(path: str | Path) -> Batch:
-    """Reads and checks a batch file; raises BatchError with one line on any problem."""
+def load(path: str | Path, default_timeout: float | None = DEFAULT_TIMEOUT_S) -> Batch:
+    """Reads and checks a batch file; raises BatchError with one line on any problem.
+
+    `default_timeout`: the timeout (seconds, None for none) of jobs that set none.
+    """
     path = Path(path).absolute()
     try:
         text = path.read_text(encoding="utf-8")
@@ -90,10 +100,10 @@ def load(path: str | Path) -> Batch:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise BatchError(f"{path}: not valid TOML: {e}") from e
-    return parse(doc, path)
+    return parse(doc, path, default_timeout)
 
 
-def parse(doc: dict[str, Any], path: Path) -> Batch:
+def parse(doc: dict[str, Any], path: Path, default_timeout: float | None = DEFAULT_TIMEOUT_S) -> Batch:
     """Checks a parsed batch document; `path` names the file in errors and anchors relative paths."""
     base = path.parent
     _check_keys(doc, TOP_KEYS, f"{path}")
@@ -117,22 +127,51 @@ def parse(doc: dict[str, Any], path: Path) -> Batch:
 
     jobs = []
     names: dict[str, int] = {}
-    outputs_seen: dict[Path, str] = {}
+    # Every file a job's merge writes (its outputs and their stats JSONs), by its real path (symbolic
+    # links resolved), with the job and the output it comes from: two jobs writing one file would
+    # lose one's image or record.
+    written: dict[str, tuple[str, Path, Path]] = {}
     for i, raw in enumerate(raw_jobs):
         where = f"{path}: jobs[{i}]"
-        job = _job(raw, defaults, base, where)
+        job = _job(raw, defaults, base, where, default_timeout)
         if job.name in names:
             raise BatchError(f"{where}: name {job.name!r} is already the name of jobs[{names[job.name]}]")
         names[job.name] = i
+        mine: dict[str, tuple[str, Path, Path]] = {}
         for out in job.outputs:
-            if out in outputs_seen:
-                raise BatchError(f"{where}: output {out} is also written by job {outputs_seen[out]!r}")
-            outputs_seen[out] = job.name
+            for file in (out, stats_json_path(out)):
+                key = os.path.realpath(file)
+                if key in written:
+                    raise BatchError(_clash(where, job.name, out, file, *written[key]))
+                mine.setdefault(key, (job.name, out, file))
+        written.update(mine)
         jobs.append(job)
     return Batch(path=path, jobs=tuple(jobs), shard_dir=shard_dir, keep_shards=keep)
 
 
-def _job(raw: dict[str, Any], defaults: dict[str, Any], base: Path, where: str) -> Job:
+def stats_json_path(image: Path) -> Path:
+    """The stats JSON plexus writes beside an image: the image's path with `.json` for its extension
+    (README, "The command line"), so `x.exr` and `x.png` share `x.json`."""
+    return image.with_suffix(".json")
+
+
+def _clash(where: str, job: str, out: Path, file: Path, other_job: str, other_out: Path, other_file: Path) -> str:
+    """The one-line error for a file that job `job` (writing `file` for its output `out`) and an earlier
+    job (writing `other_file` for `other_out`) both write."""
+    if file == out and other_file == other_out:
+        same = "" if out == other_out else f" (the same file as {other_out})"
+        return f"{where}: output {out}{same} is also written by job {other_job!r}"
+    if file != out and other_file != other_out:
+        return (
+            f"{where}: output {out} of job {job!r} and output {other_out} of job {other_job!r} share the"
+            f" stats JSON {file}: each merge writes it, so one job's record would be lost"
+        )
+    if file == out:
+        return f"{where}: output {out} of job {job!r} is the stats JSON of output {other_out} of job {other_job!r}"
+    return f"{where}: the stats JSON {file} of output {out} of job {job!r} is an output of job {other_job!r}"
+
+
+def _job(raw: dict[str, Any], defaults: dict[str, Any], base: Path, where: str, default_timeout: float | None) -> Job:
     _check_keys(raw, JOB_KEYS, where)
     merged = {**defaults, **raw}
     # Settings merge key by key, so a job can change one setting of the defaults'.
@@ -167,6 +206,7 @@ def _job(raw: dict[str, Any], defaults: dict[str, Any], base: Path, where: str) 
     seed = _int(merged.get("seed", 0), f"{where}: seed", 0, MAX_U64)
     threads = _int(merged.get("threads", 1), f"{where}: threads", 1, 1024)
     shards = _int(merged.get("shards", 1), f"{where}: shards", 1, MAX_SHARDS)
+    timeout = timeout_seconds(merged["timeout"], f"{where}: timeout") if "timeout" in merged else default_timeout
     integrator = merged.get("integrator")
     if integrator is not None and (not isinstance(integrator, str) or not integrator):
         raise BatchError(f"{where}: integrator: expected a name such as \"pt\", got {_show(integrator)}")
@@ -193,7 +233,17 @@ def _job(raw: dict[str, Any], defaults: dict[str, Any], base: Path, where: str) 
         integrator=integrator,
         settings=settings,
         outputs=outputs,
+        timeout=timeout,
     )
+
+
+def timeout_seconds(value: Any, where: str) -> float | None:
+    """A timeout in seconds: a number from 0 to a year, where 0 means none (returned as None)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise BatchError(f"{where}: expected seconds (a number; 0 for no timeout), got {_show(value)}")
+    if not 0 <= value <= MAX_TIMEOUT_S:  # also refuses nan
+        raise BatchError(f"{where}: {value} is out of range [0, {MAX_TIMEOUT_S:.0f}] (seconds; 0 for no timeout)")
+    return float(value) if value > 0 else None
 
 
 def _check_keys(table: dict[str, Any], allowed: tuple[str, ...], where: str) -> None:

@@ -23,6 +23,7 @@ class ShardTask:
     count: int
     argv: tuple[str, ...]
     state: Path  # SHARD.pxstate; the renderer writes SHARD.json beside it
+    timeout: float | None = None  # seconds one run may take before it is killed; None: no limit
 
     @property
     def label(self) -> str:
@@ -35,6 +36,7 @@ class MergeTask:
     argv: tuple[str, ...]
     outputs: tuple[Path, ...]
     shard_files: tuple[Path, ...]  # removed after a successful merge unless keep_shards
+    timeout: float | None = None
 
 
 @dataclass(frozen=True)
@@ -75,12 +77,23 @@ def plan(batch: Batch, plexus: str) -> list[JobPlan]:
         for k in range(job.shards):
             state = shard_state_path(batch, job, k)
             shards.append(
-                ShardTask(job=job.name, index=k, count=job.shards, argv=render_argv(plexus, job, k, state), state=state)
+                ShardTask(
+                    job=job.name,
+                    index=k,
+                    count=job.shards,
+                    argv=render_argv(plexus, job, k, state),
+                    state=state,
+                    timeout=job.timeout,
+                )
             )
         states = [s.state for s in shards]
         leftovers = tuple(p for s in states for p in (s, s.with_suffix(".json")))
         merge = MergeTask(
-            job=job.name, argv=merge_argv(plexus, states, job.outputs), outputs=job.outputs, shard_files=leftovers
+            job=job.name,
+            argv=merge_argv(plexus, states, job.outputs),
+            outputs=job.outputs,
+            shard_files=leftovers,
+            timeout=job.timeout,
         )
         plans.append(JobPlan(job=job, shards=tuple(shards), merge=merge))
     return plans

@@ -4,16 +4,18 @@ Every shard is one Dask task; a job's merge is one more task, submitted when the
 has finished (so merges run while other jobs still render). Earlier jobs get higher priority, so
 jobs finish, and merge, roughly in batch order rather than all at the end. A job whose shard fails
 is marked failed with that shard's error and its other tasks are cancelled; the other jobs go on.
+
+An interrupt (KeyboardInterrupt, or the CLI's BatchInterrupted for SIGTERM) while the batch runs
+cancels every task not done, a running one included (tasks.py: the task kills its plexus run), and
+is raised again as BatchInterrupted carrying the report of what completed and what did not.
 """
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 import uuid
 from collections import Counter
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -21,61 +23,10 @@ from distributed import Client, as_completed
 
 from .batchfile import Batch
 from .plan import plan
+from .report import BatchInterrupted, BatchReport, JobReport
 from .tasks import EVENT_TOPIC, Outcome, run_merge, run_shard
 
-
-@dataclass
-class JobReport:
-    name: str
-    ok: bool = False
-    error: str | None = None
-    outputs: list[str] = field(default_factory=list)
-    shards: int = 0
-    shards_done: int = 0
-    shards_retried: int = 0  # shards that started more than once (worker died, or exit 1 retried)
-    wall_s: float | None = None  # first shard's start to the merge's end (worker clocks)
-    worker_s: float = 0.0  # successful shard runs plus the merge, summed over workers
-    merge_s: float | None = None
-
-
-@dataclass
-class BatchReport:
-    batch: str
-    workers: int
-    wall_s: float = 0.0
-    jobs: list[JobReport] = field(default_factory=list)
-
-    @property
-    def ok(self) -> bool:
-        return all(j.ok for j in self.jobs)
-
-    def to_json(self) -> str:
-        return json.dumps({**asdict(self), "ok": self.ok}, indent=2) + "\n"
-
-    def table(self) -> str:
-        rows = [("job", "status", "shards", "retried", "wall s", "worker s", "merge s")]
-        for j in self.jobs:
-            rows.append(
-                (
-                    j.name,
-                    "ok" if j.ok else "FAILED",
-                    f"{j.shards_done}/{j.shards}",
-                    str(j.shards_retried),
-                    _secs(j.wall_s),
-                    _secs(j.worker_s),
-                    _secs(j.merge_s),
-                )
-            )
-        widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-        lines = ["  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths))) for r in rows]
-        lines += [f"{j.name}: {j.error}" for j in self.jobs if not j.ok]
-        ok = sum(j.ok for j in self.jobs)
-        lines.append(f"{ok} of {len(self.jobs)} jobs ok in {self.wall_s:.2f} s on {self.workers} workers")
-        return "\n".join(lines)
-
-
-def _secs(s: float | None) -> str:
-    return "-" if s is None else f"{s:.2f}"
+__all__ = ["BatchInterrupted", "BatchReport", "JobReport", "run_batch", "stderr_progress"]
 
 
 def stderr_progress(start: float) -> Callable[[str], None]:
@@ -95,8 +46,10 @@ def run_batch(
 ) -> BatchReport:
     """Runs every job of `batch` on `client`'s cluster and returns what happened to each.
 
-    `retries`: further attempts of a shard or merge whose plexus run failed at run time (exit 1 or a
-    signal); a worker's death is retried by the scheduler itself, bad input (exit 2) never.
+    `retries`: further attempts of a shard or merge whose plexus run failed at run time (exit 1, a
+    signal, or the job's timeout); a worker's death is retried by the scheduler itself, bad input
+    (exit 2) never. An interrupt cancels what is not done and raises BatchInterrupted with the
+    report.
     """
     t0 = time.monotonic()
     progress = progress or stderr_progress(t0)
@@ -115,71 +68,81 @@ def run_batch(
     total_tasks = sum(p.job.shards + 1 for p in plans)
     finished_tasks = 0
 
-    ac = as_completed()
-    for rank, p in enumerate(plans):
-        priority = len(plans) - rank
-        for s in p.shards:
-            f = client.submit(
-                run_shard,
-                s,
-                run_id,
-                key=f"plexus-shard-{p.job.name}-{s.index}-{run_id}",
-                pure=False,
-                retries=retries,
-                priority=priority,
-            )
-            what[f.key] = (p.job.name, s.index)
-            futures[p.job.name].append(f)
-            ac.add(f)
-    progress(f"submitted {sum(p.job.shards for p in plans)} shards of {len(plans)} jobs to {workers} workers")
-
     def fail(name: str, message: str) -> None:
         r = reports[name]
         if r.error is None:
             r.error = message
+            r.status = "failed"
             progress(f"{name}: FAILED: {message}")
             client.cancel([f for f in futures[name] if not f.done()])
 
-    for f in ac:
-        name, index = what[f.key]
-        r = reports[name]
-        finished_tasks += 1
-        if r.error is not None or f.status == "cancelled":
-            continue
-        label = f"shard {index}/{r.shards}" if index is not None else "merge"
-        if f.status == "error":
-            fail(name, f"{label}: {_exception_line(f.exception())}")
-            continue
-        outcome: Outcome = f.result()
-        if not outcome.ok:
-            fail(name, f"{label}: exit {outcome.exit_code}: {outcome.error}")
-            continue
-        outcomes[name].append(outcome)
-        if index is not None:
-            r.shards_done += 1
-            progress(
-                f"{name}: {label} done in {outcome.seconds:.2f} s on {outcome.worker}"
-                f" ({r.shards_done}/{r.shards} shards; {finished_tasks}/{total_tasks} tasks)"
-            )
-            if r.shards_done == r.shards:
-                p = by_name[name]
-                mf = client.submit(
-                    run_merge,
-                    p.merge,
-                    batch.keep_shards,
-                    key=f"plexus-merge-{name}-{run_id}",
+    interrupted = None
+    try:
+        ac = as_completed()
+        for rank, p in enumerate(plans):
+            priority = len(plans) - rank
+            for s in p.shards:
+                f = client.submit(
+                    run_shard,
+                    s,
+                    run_id,
+                    key=f"plexus-shard-{p.job.name}-{s.index}-{run_id}",
                     pure=False,
                     retries=retries,
-                    priority=len(plans) + 1,
+                    priority=priority,
                 )
-                what[mf.key] = (name, None)
-                futures[name].append(mf)
-                ac.add(mf)
-        else:
-            r.ok = True
-            r.merge_s = outcome.seconds
-            r.outputs = [str(o) for o in by_name[name].merge.outputs]
-            progress(f"{name}: merged in {outcome.seconds:.2f} s -> {', '.join(r.outputs)}")
+                what[f.key] = (p.job.name, s.index)
+                futures[p.job.name].append(f)
+                ac.add(f)
+        progress(f"submitted {sum(p.job.shards for p in plans)} shards of {len(plans)} jobs to {workers} workers")
+
+        for f in ac:
+            name, index = what[f.key]
+            r = reports[name]
+            finished_tasks += 1
+            if r.error is not None or f.status == "cancelled":
+                continue
+            label = f"shard {index}/{r.shards}" if index is not None else "merge"
+            if f.status == "error":
+                fail(name, f"{label}: {_exception_line(f.exception())}")
+                continue
+            outcome: Outcome = f.result()
+            if not outcome.ok:
+                fail(name, f"{label}: exit {outcome.exit_code}: {outcome.error}")
+                continue
+            outcomes[name].append(outcome)
+            if index is not None:
+                r.shards_done += 1
+                progress(
+                    f"{name}: {label} done in {outcome.seconds:.2f} s on {outcome.worker}"
+                    f" ({r.shards_done}/{r.shards} shards; {finished_tasks}/{total_tasks} tasks)"
+                )
+                if r.shards_done == r.shards:
+                    p = by_name[name]
+                    mf = client.submit(
+                        run_merge,
+                        p.merge,
+                        batch.keep_shards,
+                        key=f"plexus-merge-{name}-{run_id}",
+                        pure=False,
+                        retries=retries,
+                        priority=len(plans) + 1,
+                    )
+                    what[mf.key] = (name, None)
+                    futures[name].append(mf)
+                    ac.add(mf)
+            else:
+                r.ok = True
+                r.status = "ok"
+                r.merge_s = outcome.seconds
+                r.outputs = [str(o) for o in by_name[name].merge.outputs]
+                progress(f"{name}: merged in {outcome.seconds:.2f} s -> {', '.join(r.outputs)}")
+    except KeyboardInterrupt as e:
+        interrupted = getattr(e, "signal_name", "SIGINT")
+        progress(f"interrupted by {interrupted}: cancelling every task not done")
+        # Running tasks included: each kills its plexus run when it sees itself cancelled.
+        client.cancel([f for fs in futures.values() for f in fs if not f.done()])
+        report.mark_interrupted(interrupted)
 
     for name, r in reports.items():
         done = outcomes[name]
@@ -190,6 +153,8 @@ def run_batch(
         if name in reports:
             reports[name].shards_retried = n
     report.wall_s = time.monotonic() - t0
+    if interrupted is not None:
+        raise BatchInterrupted(interrupted, report)
     return report
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from plexus_batch.batchfile import BatchError, load, parse, toml_value
+from plexus_batch.batchfile import DEFAULT_TIMEOUT_S, BatchError, load, parse, toml_value
 from plexus_batch.plan import find_plexus, plan, shard_state_path
 
 BATCH = """
@@ -140,6 +140,11 @@ def test_settings_are_passed_as_toml_values_that_read_back_the_same(value, text)
         ('[[jobs]]\nscene = "a.toml"\nspp = 1\nsettings = { x = { y = 1 } }', "jobs[0]: settings.x: expected a number"),
         ('[[jobs]]\nscene = "a.toml"\nspp = 1\nintegrator = 3', "jobs[0]: integrator: expected a name"),
         ('keep_shards = "yes"\n[[jobs]]\nscene = "a.toml"\nspp = 1', "keep_shards: expected true or false"),
+        ('[[jobs]]\nscene = "a.toml"\nspp = 1\ntimeout = -1', "jobs[0]: timeout: -1 is out of range"),
+        ('[[jobs]]\nscene = "a.toml"\nspp = 1\ntimeout = nan', "jobs[0]: timeout: nan is out of range"),
+        ('[[jobs]]\nscene = "a.toml"\nspp = 1\ntimeout = 1e10', "jobs[0]: timeout: 10000000000.0 is out of range"),
+        ('[defaults]\ntimeout = "1h"\n[[jobs]]\nscene = "a.toml"\nspp = 1', "jobs[0]: timeout: expected seconds"),
+        ('[[jobs]]\nscene = "a.toml"\nspp = 1\ntimeout = true', "jobs[0]: timeout: expected seconds"),
     ],
 )
 def test_bad_batch_files_are_one_line_errors_naming_the_key(text, message):
@@ -147,6 +152,68 @@ def test_bad_batch_files_are_one_line_errors_naming_the_key(text, message):
         batch(text)
     assert message in str(e.value)
     assert "\n" not in str(e.value)
+
+
+def test_timeouts_default_and_override():
+    text = '[defaults]\ntimeout = 90\n[[jobs]]\nscene = "a.toml"\nspp = 1\n'
+    text += '[[jobs]]\nscene = "b.toml"\nspp = 1\ntimeout = 0.5\n[[jobs]]\nscene = "c.toml"\nspp = 1\ntimeout = 0\n'
+    a, b, c = batch(text).jobs
+    assert (a.timeout, b.timeout, c.timeout) == (90.0, 0.5, None)  # 0: no timeout
+    # Without a timeout in the file, the caller's default (the command line's --timeout), else an hour.
+    (d,) = batch('[[jobs]]\nscene = "d.toml"\nspp = 1\n').jobs
+    assert d.timeout == DEFAULT_TIMEOUT_S == 3600.0
+    (e,) = parse(tomllib.loads('[[jobs]]\nscene = "e.toml"\nspp = 1\n'), Path("/b.toml"), default_timeout=None).jobs
+    assert e.timeout is None
+    # Every run of the job, its shards and its merge, has the job's timeout.
+    (p,) = plan(batch(text), "plexus")[1:2]
+    assert {s.timeout for s in p.shards} == {p.merge.timeout} == {0.5}
+
+
+@pytest.mark.parametrize(
+    ("outputs_a", "outputs_b", "message"),
+    [
+        # Two images with one stem: each job's merge writes x.json, one record replacing the other.
+        (
+            '["out/x.exr"]',
+            '["out/y.exr", "out/x.png"]',
+            "jobs[1]: output /data/b/out/x.png of job 'b' and output /data/b/out/x.exr of job 'a' share the stats"
+            " JSON /data/b/out/x.json",
+        ),
+        ('["x.exr"]', '["sub/../x.exr"]', "jobs[1]: output /data/b/x.exr is also written by job 'a'"),
+        ('["x.exr"]', '["x.json"]', "jobs[1]: output /data/b/x.json of job 'b' is the stats JSON of output /data/b/x.exr of job 'a'"),
+        ('["x.json"]', '["x.exr"]', "jobs[1]: the stats JSON /data/b/x.json of output /data/b/x.exr of job 'b' is an output of job 'a'"),
+    ],
+)
+def test_two_jobs_writing_one_file_are_refused(outputs_a, outputs_b, message):
+    text = f'[[jobs]]\nscene = "a.toml"\nspp = 1\noutputs = {outputs_a}\n'
+    text += f'[[jobs]]\nscene = "b.toml"\nspp = 1\noutputs = {outputs_b}\n'
+    with pytest.raises(BatchError) as e:
+        batch(text)
+    assert message in str(e.value) and "\n" not in str(e.value)
+
+
+def test_one_job_s_images_share_their_stats_json():
+    # x.exr and x.png of one job: one merge writes x.json once, the same record for both.
+    (job,) = batch('[[jobs]]\nscene = "a.toml"\nspp = 1\noutputs = ["x.exr", "x.png"]\n').jobs
+    assert len(job.outputs) == 2
+
+
+def test_the_same_file_through_a_symbolic_link_is_refused(tmp_path):
+    (tmp_path / "out").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "out")
+    b = tmp_path / "b.toml"
+    b.write_text(
+        '[[jobs]]\nscene = "a.toml"\nspp = 1\noutputs = ["out/x.exr"]\n'
+        '[[jobs]]\nscene = "b.toml"\nspp = 1\noutputs = ["link/x.png"]\n'
+    )
+    with pytest.raises(BatchError, match=r"jobs\[1\]: output .*/link/x.png of job 'b' and output .*/out/x.exr of job 'a' share"):
+        load(b)
+    b.write_text(
+        '[[jobs]]\nscene = "a.toml"\nspp = 1\noutputs = ["out/x.exr"]\n'
+        '[[jobs]]\nscene = "b.toml"\nspp = 1\noutputs = ["link/x.exr"]\n'
+    )
+    with pytest.raises(BatchError, match=r"jobs\[1\]: output .*/link/x.exr \(the same file as .*/out/x.exr\) is also written by job 'a'"):
+        load(b)
 
 
 def test_load_reports_unreadable_and_malformed_files(tmp_path):
@@ -193,6 +260,28 @@ def test_dry_run_prints_the_commands(tmp_path, capsys):
     assert shlex.split(lines[0])[-4:] == ["--shard", "0/2", "--out", str(tmp_path / "b.shards/s/shard-0-of-2.pxstate")]
     assert "mis=\"power\"" in shlex.split(lines[1])
     assert shlex.split(lines[2])[:2] == [str(binary), "merge"]
+
+
+def test_cli_timeout_is_the_default_of_jobs_without_one(tmp_path, capsys, monkeypatch):
+    import plexus_batch.cli as cli
+
+    b = tmp_path / "b.toml"
+    b.write_text('[[jobs]]\nscene = "s.toml"\nspp = 1\n[[jobs]]\nscene = "t.toml"\nspp = 1\ntimeout = 7\n')
+    ran = []
+
+    def run(batch, *_args):
+        ran.append(batch)
+        raise SystemExit(0)
+
+    monkeypatch.setattr(cli, "_run", run)
+    with pytest.raises(SystemExit):
+        cli.main([str(b), "--plexus", "/bin/true", "--timeout", "60"])
+    with pytest.raises(SystemExit):
+        cli.main([str(b), "--plexus", "/bin/true", "--timeout", "0"])
+    assert [[j.timeout for j in batch.jobs] for batch in ran] == [[60.0, 7.0], [None, 7.0]]
+    assert cli.main([str(b), "--plexus", "/bin/true", "--timeout", "-5"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --timeout: -5.0 is out of range") and err.count("\n") == 1
 
 
 def test_cli_bad_input_is_exit_2_with_one_line(tmp_path, capsys):

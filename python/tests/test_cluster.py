@@ -34,6 +34,9 @@ PLEXUS = Path(os.environ.get("PLEXUS_BIN", REPO / "target" / "release" / "plexus
 # Small: the four batch runs should take seconds. A shard still runs for about a second (most of it
 # the binary's start), long enough for the kill test to find one running.
 RESOLUTION = "[32, 32]"
+# A pass of pt and bdpt holds about 2^16 pixel samples, 64 per pixel at 32x32, and a shard is a set
+# of passes (plexus refuses a shard beyond the passes): pt's 192 spp are 3 passes for its 3 shards,
+# bdpt's 128 are 2 for its 2, so every shard renders.
 
 BATCH = """
 shard_dir = "shards"
@@ -42,7 +45,7 @@ shard_dir = "shards"
 name = "box-pt"
 scene = "scenes/cornell-box.toml"
 integrator = "pt"
-spp = 32
+spp = 192
 seed = 3
 shards = 3
 outputs = ["out/box-pt.exr", "out/box-pt.png"]
@@ -51,7 +54,7 @@ outputs = ["out/box-pt.exr", "out/box-pt.png"]
 name = "glossy-bdpt"
 scene = "scenes/cornell-glossy.toml"
 integrator = "bdpt"
-spp = 8
+spp = 128
 seed = 5
 shards = 2
 settings = { max_depth = 6 }

@@ -47,6 +47,35 @@ def test_run_time_failures_are_raised_so_that_dask_retries_them(tmp_path):
         run_shard(shard(tmp_path, "kill -9 $$"), "r")
 
 
+def test_a_run_past_its_timeout_is_killed_with_its_children_and_raised_for_a_retry(tmp_path):
+    """The whole process group goes: a `sleep` started by the run too (killing only the run's own
+    process would leave it, holding the worker's stderr pipe open)."""
+    pids = tmp_path / "pids"
+    script = f"sleep 1000 & echo $$ $! > {pids}; wait"
+    task = ShardTask("j", 1, 3, sh(script), tmp_path / "s1.pxstate", timeout=0.5)
+    with pytest.raises(PlexusFailed, match=r"j shard 1/3 on local:\d+ \(.*\): timed out after 0.5 s"):
+        run_shard(task, "r")
+    procs = []
+    for pid in map(int, pids.read_text().split()):
+        try:
+            procs.append(psutil.Process(pid))
+        except psutil.NoSuchProcess:
+            pass
+    _, alive = psutil.wait_procs(procs, timeout=10)
+    assert not [p for p in alive if p.status() != psutil.STATUS_ZOMBIE], alive
+    # A run that ends within its timeout is not affected by it.
+    assert run_shard(ShardTask("j", 1, 3, sh("true"), tmp_path / "s1.pxstate", timeout=30), "r").ok
+
+
+def test_a_merge_past_its_timeout_is_killed_and_keeps_the_shard_files(tmp_path):
+    shard_file = tmp_path / "s0.pxstate"
+    shard_file.write_text("x")
+    task = MergeTask(job="j", argv=sh("sleep 1000"), outputs=(tmp_path / "j.exr",), shard_files=(shard_file,), timeout=0.3)
+    with pytest.raises(PlexusFailed, match=r"j merge on .*: timed out after 0.3 s"):
+        run_merge(task, keep_shards=False)
+    assert shard_file.exists()
+
+
 def test_error_line():
     assert error_line("") == "(nothing on stderr)"
     assert error_line("thread panicked\n\n") == "thread panicked"
