@@ -376,7 +376,10 @@ fn negative_roughness() {
         &dir,
         &scene_text("\n[materials.metal]\ntype = \"conductor\"\nroughness = -0.1\ncolour = [0.9, 0.6, 0.3]\n"),
     );
-    assert_eq!(msg, format!("{file}: materials.metal.roughness: expected a number in [0, 100] (the GGX alpha), got -0.1"));
+    assert_eq!(
+        msg,
+        format!("{file}: materials.metal.roughness: expected a number in [0, 100] (the GGX alpha), got -0.1")
+    );
 }
 
 #[test]

@@ -543,3 +543,45 @@ fn messages_name_what_the_user_gave() {
     assert_one_line_error(&o, &["the state's budget"]);
     assert!(!err.contains("--time"), "{err}");
 }
+
+/// A state whose integrator part was rewritten and given a valid checksum (as a hand-made file
+/// would be) is refused or resumed, never a crash: MMLT's chains are range-checked on restore. The
+/// rewrite sets, one at a time, every 64-bit word of the part that holds 4 (the chains' sample
+/// stream count among them) to 2^60: unchecked, the stream count sized a multi-petabyte
+/// allocation and aborted. Each rewrite must give exit 0 or one `error: ...` line with exit 2.
+#[test]
+fn a_rewritten_chain_state_never_crashes() {
+    use plexus::state::StateFile;
+    let dir = temp_dir("trust-chain-state");
+    let d = dir.path();
+    std::fs::write(d.join("s.toml"), tiny_scene("[16, 12]", "")).unwrap();
+    let args = ["render", "s.toml", "--integrator", "mmlt", "--spp", "400", "--threads", "1", "--out", "a.exr"];
+    let o = plexus_within(
+        &[&args[..], &["--set", "bootstrap=2000", "--set", "chains=2", "--set", "max_depth=2", "--stop-at-pass", "1"]]
+            .concat(),
+        d,
+        60,
+    );
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    let original = StateFile::read(&d.join("a.pxstate")).unwrap();
+    let four = 4u64.to_le_bytes();
+    let places: Vec<usize> =
+        (0..original.state.part.len().saturating_sub(8)).filter(|&i| original.state.part[i..i + 8] == four).collect();
+    assert!(!places.is_empty());
+    for &at in places.iter().take(64) {
+        let mut file = original.clone();
+        file.state.part[at..at + 8].copy_from_slice(&(1u64 << 60).to_le_bytes());
+        file.write(&d.join("b.pxstate")).unwrap();
+        let o = plexus_within(&["resume", "b.pxstate", "--out", "b.exr"], d, 60);
+        let err = stderr(&o);
+        match o.status.code() {
+            Some(0) => {}
+            // The outputs resume names before rendering, then the one error line.
+            Some(2) => {
+                let errors: Vec<&str> = err.lines().filter(|l| !l.starts_with("resume b.pxstate: writes")).collect();
+                assert!(errors.len() == 1 && errors[0].starts_with("error: "), "byte {at}: {err}");
+            }
+            other => panic!("byte {at}: exit {other:?}: {err}"),
+        }
+    }
+}

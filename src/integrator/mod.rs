@@ -97,7 +97,7 @@ pub enum RenderError {
     Limit(String),
     /// A checkpoint, resume, shard or merge asked of an integrator that cannot do it, or a state
     /// that does not fit the render.
-    #[error("{0}")]
+    #[error(transparent)]
     State(#[from] StateError),
 }
 

@@ -68,7 +68,9 @@ use crate::integrator::bdpt::{
 };
 use crate::integrator::{RenderError, RenderOutput};
 use crate::sampling::Rng;
+use crate::scene::Scene;
 use crate::spectrum::{is_finite, luminance, Rgb};
+use crate::state::StateError;
 use crate::stats::{AcceptanceCount, Counters};
 
 mod bootstrap_sample;
@@ -106,6 +108,40 @@ pub struct Mlt {
 struct Splat {
     raster: Vec2,
     value: Rgb,
+}
+
+impl ChainUnit {
+    /// Checks a unit restored from a state file (untrusted numbers) before it is used: the
+    /// sub-chains the integrator has (`depths`), each sampler's ranges, splats on the
+    /// `width`×`height` film with finite values, and an RJMLT path whose vertices are finite and
+    /// name materials and lights the scene has (its vertices become rays and lookups).
+    fn check_restored(&self, scene: &Scene, depths: usize, width: u32, height: u32) -> Result<(), StateError> {
+        let bad = |what: String| StateError::Mismatch(format!("chain {} of the state: {what}", self.index));
+        if self.subchains.len() != depths {
+            return Err(bad(format!("{} sub-chains where the integrator has {depths}", self.subchains.len())));
+        }
+        for sub in self.subchains.iter().flatten() {
+            sub.sampler.check_restored(STREAM_COUNT).map_err(bad)?;
+            let c = &sub.current;
+            let on_film = |r: Vec2| r.x >= 0.0 && r.y >= 0.0 && r.x < width as f32 && r.y < height as f32;
+            if !c.splats.iter().all(|s| on_film(s.raster) && s.value.is_finite())
+                || !(c.target.is_finite() && c.target >= 0.0 && c.unweighted.is_finite())
+                || !c.weights.iter().all(|w| w.is_finite())
+            {
+                return Err(bad("a current state with values out of range".into()));
+            }
+            let vertex_ok = |v: &Vertex| {
+                [v.p, v.p_error, v.ng, v.frame.s, v.frame.t, v.frame.n, v.wo, v.dir].iter().all(|x| x.is_finite())
+                    && v.uv.is_finite()
+                    && (v.material as usize) < scene.materials.len().max(1)
+                    && v.light.is_none_or(|l| (l as usize) < scene.lights.len())
+            };
+            if c.s > c.path.len() || !c.path.iter().all(vertex_ok) {
+                return Err(bad("a current path that is not a path of this scene".into()));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The contributions of one primary-sample state and its scalar target.

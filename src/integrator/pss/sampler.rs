@@ -210,6 +210,31 @@ impl PssSampler {
         self.iteration -= 1;
     }
 
+    /// Checks a chain restored from a state file, whose numbers are untrusted: `stream_count`
+    /// streams as the integrator makes them, every coordinate a number in [0, 1), positions and
+    /// iterations that the chain could have reached. Unchecked, a stream count of 2^60 made the
+    /// next coordinate's index ask for petabytes.
+    pub fn check_restored(&self, stream_count: usize) -> Result<(), String> {
+        // Far more coordinates than any path of the depth limit reads.
+        const MAX_COORDINATES: usize = 1 << 24;
+        let unit = |v: f64| (0.0..1.0).contains(&v);
+        if self.stream_count != stream_count {
+            return Err(format!("a chain has {} sample streams, not {stream_count}", self.stream_count));
+        }
+        if self.stream >= stream_count || self.stream_position > MAX_COORDINATES / stream_count {
+            return Err("a chain's stream position is out of range".into());
+        }
+        if self.samples.len() > MAX_COORDINATES
+            || !self.samples.iter().all(|s| unit(s.value) && unit(s.backup_value) && s.last_modified <= self.iteration)
+        {
+            return Err("a chain's primary samples are out of range".into());
+        }
+        if self.last_large_step > self.iteration || self.touched.iter().any(|&i| i >= self.samples.len()) {
+            return Err("a chain's iteration counters are inconsistent".into());
+        }
+        Ok(())
+    }
+
     fn grow_to(&mut self, index: usize) {
         if index >= self.samples.len() {
             self.samples.resize(
@@ -262,6 +287,31 @@ impl UniformSource for PssSampler {
 
 #[cfg(test)]
 mod tests {
+
+    /// A restored chain's numbers are checked before they size anything: the stream count, the
+    /// coordinates' range, the counters.
+    #[test]
+    fn restored_chains_are_range_checked() {
+        let mut s = PssSampler::new(Rng::new(1, 0), MutationSettings::default(), 4);
+        s.start_iteration();
+        for stream in 0..4 {
+            s.start_stream(stream);
+            s.next_2d();
+        }
+        s.accept();
+        assert_eq!(s.check_restored(4), Ok(()));
+        assert!(s.check_restored(3).is_err());
+        let mut huge = s.clone();
+        huge.stream_count = 1 << 60;
+        assert!(huge.check_restored(4).is_err());
+        let mut outside = s.clone();
+        outside.samples[0].value = 1.5;
+        assert!(outside.check_restored(4).is_err());
+        let mut future = s.clone();
+        future.last_large_step = future.iteration + 1;
+        assert!(future.check_restored(4).is_err());
+    }
+
     use super::*;
 
     #[test]

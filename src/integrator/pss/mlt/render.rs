@@ -219,6 +219,9 @@ impl Mlt {
         let (boot, units, saved_slot, film, next_pass) = match cs.resumed::<MltPart>(width as u32, stacked_height)? {
             Some((state, part)) => {
                 let units: Vec<ChainUnit> = load_units(&part.units)?;
+                for unit in &units {
+                    unit.check_restored(scene, self.depth_count(), width as u32, height as u32)?;
+                }
                 let mut slot = self.new_slot(width, height);
                 slot.stats = part.stats;
                 slot.count_films = part.count_films;
