@@ -4,6 +4,7 @@
 # fail-SEED.input; each is reproduced with
 #   PLEXUS_FUZZ_SEED=SEED PLEXUS_FUZZ_CASES=1 cargo test --release --test fuzz replay -- --ignored --nocapture
 # Prints the number of cases run and every failure; exits non-zero when a case failed.
+# PLEXUS_FUZZ_BINARY=PATH in the environment runs the binary cases against another plexus build.
 #
 # usage: scripts/fuzz.sh [SECONDS] [SEED] [DIR]
 set -euo pipefail
