@@ -48,6 +48,14 @@ for k in $(seq 1 16); do
     "$PLEXUS" reference scenes/breakfast-window.toml --integrator pt --spp $((SPP / 2)) --seed $((SEED + k)) \
         --resolution 32x32 --set max_depth=8 --out "references/breakfast-window-parts/$(printf %02d "$k").exr"
 done
+# The refraction scenes: a lamp sealed in a flat glass slab (smooth and rough) and a glass prism
+# under a lamp, whose light-direction refractions do not cancel (the measure factor of
+# src/integrator/path_space/density.rs): the path-space and primary-sample-space MLT agreement
+# tests (tests/refraction.rs) compare their region shares with these, at 32×32.
+for s in glass-lamp glass-lamp-rough glass-prism; do
+    "$PLEXUS" reference "scenes/$s.toml" --integrator pt --spp "$SPP" --seed "$SEED" \
+        --resolution 128x128 --set max_depth=8 --out "references/$s.exr"
+done
 # staircase (issue 17's emlt benchmark): the imported staircase (scenes/imported/staircase.toml,
 # 720×1280) at 72×128 and 1024 spp (about 60 CPU s): its pt noise is measured against a second,
 # independent 256-spp render in docs/lab/benchmarks-history.md's issue 17 section.

@@ -280,7 +280,7 @@ fn pmlt_wrong_perturbations_fail_on_cornell_glossy_and_glass() {
     }
     let scene = scene("cornell-glass", SIZE);
     let mut wrong = pmlt_with(CAUSTIC.params);
-    wrong.caustic = Caustic { omit_pivot_cos: true };
+    wrong.caustic = Caustic { omit_pivot_cos: true, ..Caustic::default() };
     let a = image_share_agreement(&pmlt_regions(&scene, &wrong, 1536).0, &reference("cornell-glass"), GRID);
     println!("cornell-glass, caustic T without the pivot's |cos|: worst |z| = {:.2}\n{}", a.worst_z, a.report());
 }

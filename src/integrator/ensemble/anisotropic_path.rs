@@ -256,7 +256,7 @@ impl Strategy for AnisotropicPath {
             let Some(film) = FilmKernel::fit(guide, from, weigh, &subset, a) else { return 0.0 };
             let (p, n) = at(&y[b]);
             film.density(ctx, from, to)
-                * retrace_jacobian(y, 0, a)
+                * retrace_jacobian(ctx.scene, y, 0, a)
                 * kernel(b).density_area(y[a].vertex.p.as_dvec3(), p, n)
         } else {
             let (pb, nb) = at(&y[b]);

@@ -40,6 +40,8 @@ use crate::integrator::path_space::lens::{lens_chain_end, offset_raster, raster_
 use crate::integrator::path_space::multichain::{
     self, further_chains_density, retrace_further_chains, MultiChain, MultiChainKernel,
 };
+#[cfg(any(test, feature = "testing"))]
+use crate::integrator::path_space::retrace::retrace_measure_factor;
 use crate::integrator::path_space::retrace::{retrace, retrace_jacobian};
 use crate::integrator::path_space::{PathContext, PathState, PathVertex, Strategy};
 use crate::sampling::Rng;
@@ -264,7 +266,7 @@ impl Strategy for LinearLens {
         kernel.transition_with(Lens::default(), ctx, from, to, mv, |subset, guide| {
             let Some(k) = lens_chain_end(&from.vertices) else { return 0.0 };
             let t_px = self.film_density(kernel, from, to, subset, guide, k);
-            raster_to_solid_angle(ctx, to, t_px) * retrace_jacobian(&to.vertices, 0, k)
+            raster_to_solid_angle(ctx, to, t_px) * retrace_jacobian(ctx.scene, &to.vertices, 0, k)
         })
     }
 
@@ -275,9 +277,26 @@ impl Strategy for LinearLens {
 
 /// The linear caustic perturbation (module docs).
 #[derive(Clone, Copy, Debug, Default)]
-pub struct LinearCaustic;
+pub struct LinearCaustic {
+    /// Tests only: T without the retrace's refraction measure factors Π h, in the guided move and
+    /// in its fallback (`Caustic::omit_refraction_measure`), the deliberately wrong variant the
+    /// agreement tests on scenes whose Π h ≠ 1 must reject.
+    #[cfg(any(test, feature = "testing"))]
+    pub omit_refraction_measure: bool,
+}
 
 impl LinearCaustic {
+    /// Veach's caustic perturbation, the fallback, with this strategy's wrong variant.
+    fn plain(&self) -> Caustic {
+        #[allow(unused_mut)]
+        let mut caustic = Caustic::default();
+        #[cfg(any(test, feature = "testing"))]
+        {
+            caustic.omit_refraction_measure = self.omit_refraction_measure;
+        }
+        caustic
+    }
+
     /// ω₁ (pivot → vertex j − 1 of `path`) and ω₂ (pivot → the guide's vertex j − 1).
     fn directions(path: &PathState, guide: &PathState, j: usize) -> (glam::DVec3, glam::DVec3) {
         let pivot = &path.vertices[j].vertex;
@@ -312,7 +331,7 @@ impl Strategy for LinearCaustic {
         counters: &mut Counters,
     ) -> Option<(PathState, GuidedMove)> {
         let view = &kernel.view;
-        kernel.propose_with(Caustic::default(), ctx, path, rng, counters, |subset, offset, rng, counters| {
+        kernel.propose_with(self.plain(), ctx, path, rng, counters, |subset, offset, rng, counters| {
             let x = &path.vertices;
             let j = caustic_pivot(x)?;
             let w = view.weights(path, subset, j - 1, j, &kernel.counts);
@@ -336,7 +355,7 @@ impl Strategy for LinearCaustic {
         mv: &GuidedMove,
     ) -> f64 {
         let view = &kernel.view;
-        kernel.transition_with(Caustic::default(), ctx, from, to, mv, |subset, guide| {
+        kernel.transition_with(self.plain(), ctx, from, to, mv, |subset, guide| {
             let Some(j) = caustic_pivot(&from.vertices) else { return 0.0 };
             if caustic_pivot(&to.vertices) != Some(j) {
                 return 0.0;
@@ -353,7 +372,13 @@ impl Strategy for LinearCaustic {
             let stretch = StretchKernel { alpha: view.alpha(subset) };
             let g = stretch.density_lambda(psi_new / psi);
             let t_omega = g / (psi * psi_new.sin());
-            t_omega * retrace_jacobian(&to.vertices, j, 1)
+            #[allow(unused_mut)]
+            let mut t = t_omega * retrace_jacobian(ctx.scene, &to.vertices, j, 1);
+            #[cfg(any(test, feature = "testing"))]
+            if self.omit_refraction_measure {
+                t /= retrace_measure_factor(ctx.scene, &to.vertices, j, 1);
+            }
+            t
         })
     }
 
@@ -435,8 +460,8 @@ impl Strategy for LinearMultiChain {
             let k = cx[0].1;
             let t_px = self.lens.film_density(kernel, from, to, subset, guide, k);
             raster_to_solid_angle(ctx, to, t_px)
-                * retrace_jacobian(y, 0, k)
-                * further_chains_density(x, y, &cx, &kernel.plain.direction)
+                * retrace_jacobian(ctx.scene, y, 0, k)
+                * further_chains_density(ctx.scene, x, y, &cx, &kernel.plain.direction)
         })
     }
 

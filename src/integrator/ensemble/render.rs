@@ -55,6 +55,10 @@ pub struct Emlt {
     pub linear_lens: LinearLens,
     /// The anisotropic path perturbation (a value for the same reason).
     pub anisotropic_path: AnisotropicPath,
+    /// The linear caustic perturbation (a value for the same reason).
+    pub linear_caustic: LinearCaustic,
+    /// The bidirectional mutation (a value for the same reason).
+    pub bidirectional: Bidirectional,
 }
 
 /// The ensemble part of the JSON statistics.
@@ -110,14 +114,14 @@ impl Emlt {
         let weights = s.guided_weights();
         StrategySet {
             entries: vec![
-                Box::new(Entry { strategy: Bidirectional::default(), kernel: LengthKernel, weight: s.bidirectional }),
+                Box::new(Entry { strategy: self.bidirectional, kernel: LengthKernel, weight: s.bidirectional }),
                 Box::new(Entry {
                     strategy: self.linear_lens,
                     kernel: GuidedKernel { view: view.clone(), plain: raster, counts: counts[0].clone() },
                     weight: weights[0],
                 }),
                 Box::new(Entry {
-                    strategy: LinearCaustic,
+                    strategy: self.linear_caustic,
                     kernel: GuidedKernel {
                         view: view.clone(),
                         plain: CausticKernel::from_lens(&raster, camera),

@@ -29,7 +29,9 @@
 //!
 //! where p_{s′,t′} is the product of the area densities of generating the new vertices z that way:
 //! t′ of them from the camera side in order, s′ from the emitter side in order, zero if the split's
-//! connection would end at a specular vertex. The sum is over every split because ȳ does not
+//! connection would end at a specular vertex. An emitter-side step through a refraction carries
+//! the measure factor h = η_a² |cos θ_a| / (η_b² |cos θ_b|) of the `density` module docs (the
+//! walk generates the camera-side direction, f strips the δ of the light-side one). The sum is over every split because ȳ does not
 //! record which one produced it: all of them could have. The cut (l, k_d, k_a) is the proposal's
 //! record (`Strategy::Move`), and the reverse density T(ȳ → x̄) is the same function for the
 //! reverse cut (l, k_a, k_d): the deleted vertices of x̄ are the "new" ones of the reverse move.
@@ -145,6 +147,11 @@ pub struct Bidirectional {
     /// path-length and agreement tests must reject).
     #[cfg(any(test, feature = "testing"))]
     pub omit_addition_pmf: bool,
+    /// Tests only: leave the emitter-side walks' refraction measure factors h out of T (`density`
+    /// module docs), the deliberately wrong variant the agreement tests on scenes whose Π h ≠ 1
+    /// must reject.
+    #[cfg(any(test, feature = "testing"))]
+    pub omit_refraction_measure: bool,
 }
 
 /// The change a bidirectional proposal made (its `Strategy::Move`): it kept x_0 … x_l, deleted
@@ -220,10 +227,36 @@ impl Bidirectional {
         density
     }
 
-    /// Σ over the splits of (1/k_a) · p_{s′,t′}, every split but `omit` (None: all).
-    fn split_sum(ctx: &PathContext, y: &[PathVertex], cut: Cut, omit: Option<usize>) -> f64 {
-        (0..cut.ka).filter(|&s| Some(s) != omit).map(|s| Self::split_density(ctx, y, cut, s)).sum::<f64>()
-            / cut.ka as f64
+    /// Σ over the splits of (1/k_a) · p_{s′,t′}, every split but the wrong variant's `omit_split`.
+    fn split_sum(&self, ctx: &PathContext, y: &[PathVertex], cut: Cut) -> f64 {
+        #[cfg(any(test, feature = "testing"))]
+        let omit = self.omit_split;
+        #[cfg(not(any(test, feature = "testing")))]
+        let omit: Option<usize> = None;
+        let density = |s: usize| {
+            #[allow(unused_mut)]
+            let mut d = Self::split_density(ctx, y, cut, s);
+            #[cfg(any(test, feature = "testing"))]
+            if self.omit_refraction_measure && d > 0.0 {
+                d /= Self::emitter_side_measure(ctx, y, cut, s);
+            }
+            d
+        };
+        (0..cut.ka).filter(|&s| Some(s) != omit).map(density).sum::<f64>() / cut.ka as f64
+    }
+
+    /// The wrong variant's divisor: Π h over the emitter-side steps of split s′ that continue
+    /// from a surface vertex (those `split_density` takes from `density_next` with `Side::Light`).
+    #[cfg(any(test, feature = "testing"))]
+    fn emitter_side_measure(ctx: &PathContext, y: &[PathVertex], cut: Cut, s: usize) -> f64 {
+        let (n, m) = (y.len(), cut.l + cut.ka);
+        // y_j is generated from y_{j+1}, a surface exactly when j + 2 < n (else the emitter).
+        (m - s..m)
+            .filter(|&j| j + 2 < n)
+            .map(|j| {
+                super::density::light_step_measure_factor(ctx.scene, &y[j + 1].vertex, &y[j].vertex, &y[j + 2].vertex)
+            })
+            .product()
     }
 
     /// Grows `t` vertices from the camera end (`x_l` with its predecessor) and `s` from the emitter
@@ -333,11 +366,7 @@ impl Strategy for Bidirectional {
         if self.omit_addition_pmf {
             addition = 1.0;
         }
-        #[cfg(any(test, feature = "testing"))]
-        let omit = self.omit_split;
-        #[cfg(not(any(test, feature = "testing")))]
-        let omit = None;
-        let t = kernel.deletion_pmf(cut.kd, n) * position * addition * Self::split_sum(ctx, &to.vertices, cut, omit);
+        let t = kernel.deletion_pmf(cut.kd, n) * position * addition * self.split_sum(ctx, &to.vertices, cut);
         if t.is_finite() {
             t
         } else {

@@ -15,14 +15,20 @@
 //! # Transition density
 //! In the delta-stripped area measure of y_1 … y_{j−1} (path_space module docs):
 //!
-//!   T(x̄ → ȳ) = p_θ(x̄)(ω_y | ω_x) · Π |cos θ_next|/d² over the traced edges y_j → … → y_1,
+//!   T(x̄ → ȳ) = p_θ(x̄)(ω_y | ω_x) · Π |cos θ_next|/d² over the traced edges y_j → … → y_1
+//!              · Π h(y_i) over the chain's refractions y_2 … y_{j−1},
 //!
 //! p_θ per unit solid angle at the pivot (`DirectionKernel::density`). The path measure at the
 //! pivot is projected solid angle in f (its g carries |cos θ| at x_j), the kernel's solid angle is
 //! not: so the acceptance keeps the ratio |cos θ_j(ȳ)| / |cos θ_j(x̄)| through f — nothing cancels
 //! it, and a T per unit projected solid angle would drop it (the wrong variant the χ² test rejects).
+//! The retrace runs towards the camera, against the direction f strips each specular vertex's δ
+//! in, so each refraction contributes its measure factor h = η_a² |cos θ_a| / (η_b² |cos θ_b|)
+//! (`density` module docs; `retrace::retrace_jacobian` includes it).
 
 use super::kernel::{DirectionKernel, RasterKernel};
+#[cfg(any(test, feature = "testing"))]
+use super::retrace::retrace_measure_factor;
 use super::retrace::{first_non_specular, retrace, retrace_jacobian};
 use super::state::{Interaction, PathState, PathVertex};
 use super::strategy::Strategy;
@@ -63,6 +69,11 @@ pub struct Caustic {
     /// test must reject: it would drop the pivot's |cos| from the acceptance.
     #[cfg(any(test, feature = "testing"))]
     pub omit_pivot_cos: bool,
+    /// Tests only: T without the refractions' measure factors Π h (the retrace towards the camera
+    /// taken as if it ran towards the light), the deliberately wrong variant the agreement tests on
+    /// scenes whose Π h ≠ 1 must reject.
+    #[cfg(any(test, feature = "testing"))]
+    pub omit_refraction_measure: bool,
 }
 
 /// The pivot x_j of the caustic perturbation on `path`, if it is suitable there (module docs).
@@ -113,7 +124,7 @@ impl Strategy for Caustic {
         Some((PathState::from_path_vertices(ctx, vertices, counters), ()))
     }
 
-    fn transition(&self, _ctx: &PathContext, kernel: &CausticKernel, from: &PathState, to: &PathState, _: &()) -> f64 {
+    fn transition(&self, ctx: &PathContext, kernel: &CausticKernel, from: &PathState, to: &PathState, _: &()) -> f64 {
         let (x, y) = (&from.vertices, &to.vertices);
         let Some(j) = caustic_pivot(x) else { return 0.0 };
         if y.len() != x.len() || caustic_pivot(y) != Some(j) || first_non_specular(y) != Some(1) {
@@ -124,11 +135,15 @@ impl Strategy for Caustic {
         let axis = x[j].vertex.dir_to(&x[j - 1].vertex).as_dvec3();
         let dir = y[j].vertex.dir_to(&y[j - 1].vertex).as_dvec3();
         #[allow(unused_mut)]
-        let mut t = k.density(axis, dir) * retrace_jacobian(y, j, 1);
+        let mut t = k.density(axis, dir) * retrace_jacobian(ctx.scene, y, j, 1);
         #[cfg(any(test, feature = "testing"))]
         if self.omit_pivot_cos {
             let n = y[j].vertex.frame.n.as_dvec3();
             t *= n.dot(axis).abs() / n.dot(dir).abs();
+        }
+        #[cfg(any(test, feature = "testing"))]
+        if self.omit_refraction_measure {
+            t /= retrace_measure_factor(ctx.scene, y, j, 1);
         }
         if t.is_finite() {
             t

@@ -121,7 +121,7 @@ impl Strategy for Lens {
         }
         let offset = (to.raster - from.raster).as_dvec2();
         #[allow(unused_mut)]
-        let mut t = raster_to_solid_angle(ctx, to, kernel.density(offset)) * retrace_jacobian(y, 0, k);
+        let mut t = raster_to_solid_angle(ctx, to, kernel.density(offset)) * retrace_jacobian(ctx.scene, y, 0, k);
         #[cfg(any(test, feature = "testing"))]
         if self.connection_g_in_t && k + 1 < y.len() {
             t *= connection_g(y, k) / connection_g(x, k);

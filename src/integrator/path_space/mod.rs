@@ -27,6 +27,13 @@
 //! image is the whole film: pixel j's value is P·∫ 1_j(x̄) f(x̄) dμ(x̄) (P pixels), as BDPT's
 //! whole-film sampling of primary-sample-space MLT normalises it.
 //!
+//! The δ of a specular vertex is stripped with respect to the solid angle of its direction towards
+//! the light (towards x_{i+1}). A step that generates the direction towards the camera from the one
+//! towards the light (an emitter-side walk of the bidirectional mutation, a retrace towards the
+//! camera) carries the other δ, so at a refraction its density is converted by the measure factor
+//! h = η_a² |cos θ_a| / (η_b² |cos θ_b|) (`density` module docs, "Light-direction steps through a
+//! refraction"); reflections and steps towards the light need none.
+//!
 //! # Contribution
 //! `contribution::evaluate` computes f(x̄) from the vertices alone, visibility included, for every
 //! proposal of every strategy: there is one f.

@@ -23,6 +23,7 @@ use super::state::{Interaction, PathState, PathVertex};
 use super::strategy::Strategy;
 use super::PathContext;
 use crate::sampling::Rng;
+use crate::scene::Scene;
 use crate::stats::Counters;
 
 /// The multi-chain perturbation's kernels: the lens offset and the direction kernel at each
@@ -99,6 +100,7 @@ pub fn retrace_further_chains(
 /// The density of [`retrace_further_chains`] turning `x` into `y` (module docs): per further chain
 /// (p, m), p_θ(ω_y | ω_x) at y_p times the chain's retrace Jacobian.
 pub fn further_chains_density(
+    scene: &Scene,
     x: &[PathVertex],
     y: &[PathVertex],
     chains: &[(usize, usize)],
@@ -109,7 +111,7 @@ pub fn further_chains_density(
         .map(|&(p, m)| {
             let axis = x[p].vertex.dir_to(&x[p + 1].vertex).as_dvec3();
             let dir = y[p].vertex.dir_to(&y[p + 1].vertex).as_dvec3();
-            direction.density(axis, dir) * retrace_jacobian(y, p, m)
+            direction.density(axis, dir) * retrace_jacobian(scene, y, p, m)
         })
         .product()
 }
@@ -165,8 +167,8 @@ impl Strategy for MultiChain {
         let offset = (to.raster - from.raster).as_dvec2();
         let (_, k) = cx[0];
         let t = raster_to_solid_angle(ctx, to, kernel.lens.density(offset))
-            * retrace_jacobian(y, 0, k)
-            * further_chains_density(x, y, &cx, &kernel.direction);
+            * retrace_jacobian(ctx.scene, y, 0, k)
+            * further_chains_density(ctx.scene, x, y, &cx, &kernel.direction);
         if t.is_finite() {
             t
         } else {

@@ -212,7 +212,7 @@ fn chi2_of_caustic(strategy: Caustic, samples: usize) -> Chi2Outcome {
 fn caustic_transition_matches_the_proposal_density() {
     let right = chi2_of_caustic(Caustic::default(), 1_000_000);
     println!("caustic, right T: {}", right.message);
-    let wrong = chi2_of_caustic(Caustic { omit_pivot_cos: true }, 1_000_000);
+    let wrong = chi2_of_caustic(Caustic { omit_pivot_cos: true, ..Caustic::default() }, 1_000_000);
     println!("caustic, T without the pivot's |cos|: {}", wrong.message);
     assert!(!wrong.passed, "a caustic T without the pivot's |cos| passed: {}", wrong.message);
     assert!(right.passed, "{}", right.message);

@@ -17,19 +17,25 @@
 //! probability 1, and each traced edge contributes its solid-angle-to-area factor |cos θ_next|/d²
 //! (the cosine at the vertex reached; the edge's other cosine is in f's specular F/|cos| and
 //! cancels there). So a density per unit solid angle at the origin becomes a density per unit area
-//! of the chain's vertices by [`retrace_jacobian`], the product of those factors.
+//! of the chain's vertices by [`retrace_jacobian`], the product of those factors. That holds as
+//! written for a retrace towards the light, which follows each specular vertex's lobe in the
+//! direction f strips its δ in. A retrace towards the camera follows it the other way, and each
+//! interior vertex that refracts contributes the measure factor h = η_a² |cos θ_a| / (η_b² |cos θ_b|)
+//! (a towards the camera, b towards the light; derived in the `density` module docs, "Light-direction
+//! steps through a refraction"): [`retrace_measure_factor`], which [`retrace_jacobian`] includes.
 
 // `!(x > 0.0)` is deliberate throughout: it rejects NaN along with zero and negative values.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use glam::Vec3;
 
-use super::density::{trace, Side};
+use super::density::{light_step_measure_factor, trace, Side};
 use super::state::{with_role, Interaction, PathVertex};
 use super::PathContext;
 use crate::geometry::spawn_ray;
 use crate::integrator::bdpt::Vertex;
 use crate::material::TransportMode;
+use crate::scene::Scene;
 use crate::stats::Counters;
 
 /// Whether the specular vertex `v` of a path reflects (its two neighbours on the same side of its
@@ -152,8 +158,9 @@ pub fn solid_angle_to_area(a: &Vertex, b: &Vertex) -> f64 {
 
 /// The factor that turns a density per unit solid angle at `path[from]` of the direction towards
 /// `path[from ± 1]` into the area density of the retraced vertices `path[from ± 1]` … `path[to]`
-/// (module docs): the product of the traced edges' |cos θ_next|/d².
-pub fn retrace_jacobian(path: &[PathVertex], from: usize, to: usize) -> f64 {
+/// in f's measure (module docs): the product of the traced edges' |cos θ_next|/d², times
+/// [`retrace_measure_factor`] for a retrace towards the camera.
+pub fn retrace_jacobian(scene: &Scene, path: &[PathVertex], from: usize, to: usize) -> f64 {
     let (lo, hi) = if from < to { (from, to) } else { (to, from) };
     let mut jac = 1.0;
     for j in lo..hi {
@@ -163,7 +170,19 @@ pub fn retrace_jacobian(path: &[PathVertex], from: usize, to: usize) -> f64 {
             solid_angle_to_area(&path[j + 1].vertex, &path[j].vertex)
         };
     }
-    jac
+    jac * retrace_measure_factor(scene, path, from, to)
+}
+
+/// Π h over the interior vertices of a retrace from `path[from]` to `path[to]` (module docs): 1
+/// towards the light (`from < to`); towards the camera, the product over `to < j < from` of
+/// h(x_j) with a = x_{j−1} and b = x_{j+1} (1 at every vertex that reflects).
+pub fn retrace_measure_factor(scene: &Scene, path: &[PathVertex], from: usize, to: usize) -> f64 {
+    if from <= to {
+        return 1.0;
+    }
+    (to + 1..from)
+        .map(|j| light_step_measure_factor(scene, &path[j].vertex, &path[j - 1].vertex, &path[j + 1].vertex))
+        .product()
 }
 
 /// Index of the first vertex after the camera that is not specular (the vertex where a lens
