@@ -114,8 +114,15 @@ impl ChainUnit {
     /// Checks a unit restored from a state file (untrusted numbers) before it is used: the
     /// sub-chains the integrator has (`depths`), each sampler's ranges, splats on the
     /// `width`×`height` film with finite values, and an RJMLT path whose vertices are finite and
-    /// name materials and lights the scene has (its vertices become rays and lookups).
-    fn check_restored(&self, scene: &Scene, depths: usize, width: u32, height: u32) -> Result<(), StateError> {
+    /// name materials and lights the scene has (its vertices become rays and lookups), and a
+    /// technique `s` (light vertices) of at most `max_vertices`.
+    fn check_restored(
+        &self,
+        scene: &Scene,
+        (depths, max_vertices): (usize, usize),
+        width: u32,
+        height: u32,
+    ) -> Result<(), StateError> {
         let bad = |what: String| StateError::Mismatch(format!("chain {} of the state: {what}", self.index));
         if self.subchains.len() != depths {
             return Err(bad(format!("{} sub-chains where the integrator has {depths}", self.subchains.len())));
@@ -136,7 +143,9 @@ impl ChainUnit {
                     && (v.material as usize) < scene.materials.len().max(1)
                     && v.light.is_none_or(|l| (l as usize) < scene.lights.len())
             };
-            if c.s > c.path.len() || !c.path.iter().all(vertex_ok) {
+            // MMLT keeps no path (only its technique); RJMLT's technique indexes its path.
+            let s_ok = c.s <= max_vertices && (c.path.is_empty() || c.s <= c.path.len());
+            if !s_ok || !c.path.iter().all(vertex_ok) {
                 return Err(bad("a current path that is not a path of this scene".into()));
             }
         }

@@ -220,7 +220,8 @@ impl Mlt {
             Some((state, part)) => {
                 let units: Vec<ChainUnit> = load_units(&part.units)?;
                 for unit in &units {
-                    unit.check_restored(scene, self.depth_count(), width as u32, height as u32)?;
+                    let counts = (self.depth_count(), self.settings.max_depth as usize + 2);
+                    unit.check_restored(scene, counts, width as u32, height as u32)?;
                 }
                 let mut slot = self.new_slot(width, height);
                 slot.stats = part.stats;
