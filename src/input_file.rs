@@ -97,7 +97,7 @@ mod tests {
             read_regular(&b, 10).unwrap();
             (inner, ())
         });
-        assert_eq!(inner, [a.clone()]);
+        assert_eq!(inner, std::slice::from_ref(&a));
         assert_eq!(outer, [b, a]);
         assert!(open_regular(Path::new("/dev/null")).is_err());
     }

@@ -131,10 +131,12 @@ impl ChainUnit {
             sub.sampler.check_restored(STREAM_COUNT).map_err(bad)?;
             let c = &sub.current;
             let on_film = |r: Vec2| r.x >= 0.0 && r.y >= 0.0 && r.x < width as f32 && r.y < height as f32;
-            if !c.splats.iter().all(|s| on_film(s.raster) && s.value.is_finite())
-                || !(c.target.is_finite() && c.target >= 0.0 && c.unweighted.is_finite())
-                || !c.weights.iter().all(|w| w.is_finite())
-            {
+            let values_ok = c.splats.iter().all(|s| on_film(s.raster) && s.value.is_finite())
+                && c.target.is_finite()
+                && c.target >= 0.0
+                && c.unweighted.is_finite()
+                && c.weights.iter().all(|w| w.is_finite());
+            if !values_ok {
                 return Err(bad("a current state with values out of range".into()));
             }
             let vertex_ok = |v: &Vertex| {
