@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs the fuzz harness of tests/fuzz.rs for SECONDS (default 1800) from a random start seed (or
+# Runs the fuzz harness of tests/fuzz/main.rs for SECONDS (default 1800) from a random start seed (or
 # SEED), at low priority. Failing inputs are kept in DIR (default target/fuzz-failures/) as
 # fail-SEED.input; each is reproduced with
 #   PLEXUS_FUZZ_SEED=SEED PLEXUS_FUZZ_CASES=1 cargo test --release --test fuzz replay -- --ignored --nocapture

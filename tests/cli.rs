@@ -7,6 +7,7 @@ use std::process::Output;
 
 mod common;
 use common::binary::{plexus, stderr, temp_dir};
+use common::inputs::mitsuba_scene;
 
 /// A tiny valid scene: an 8×6 camera looking at a diffuse floor under a one-sided area light.
 /// `{MATERIAL}`, `{EMISSION}`, `{RESOLUTION}` and `{EXTRA}` are substituted by the tests.
@@ -399,32 +400,14 @@ fn bench_prints_progress_tables_and_json() {
     assert_eq!(json["path_tracer"][0]["threads"], 1);
 }
 
-/// A Mitsuba scene: a floor under a rectangle light, seen from above, with an integrator plexus
-/// substitutes (the import warning every scene verb must print, with the file's line).
-const MITSUBA_SCENE: &str = r#"<scene version="3.0.0">
-  <integrator type="sppm"/>
-  <sensor type="perspective">
-    <float name="fov" value="50"/>
-    <transform name="to_world"><lookat origin="0, 3, 3" target="0, 0, 0" up="0, 1, 0"/></transform>
-    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/><rfilter type="box"/></film>
-  </sensor>
-  <shape type="rectangle">
-    <transform name="to_world"><scale value="2"/><rotate x="1" angle="-90"/></transform>
-    <bsdf type="diffuse"><rgb name="reflectance" value="0.5, 0.5, 0.5"/></bsdf>
-  </shape>
-  <shape type="rectangle">
-    <transform name="to_world"><scale value="0.5"/><rotate x="1" angle="90"/><translate y="2"/></transform>
-    <emitter type="area"><rgb name="radiance" value="5, 5, 5"/></emitter>
-  </shape>
-</scene>
-"#;
-
 /// Every verb that takes a scene takes Mitsuba XML, with the same import warnings: `render`,
 /// `info`, `reference` and `converge` (which refused it as malformed TOML).
 #[test]
 fn every_scene_verb_takes_mitsuba_xml_with_its_warnings() {
     let dir = temp_dir("xml-verbs");
-    std::fs::write(dir.path().join("floor.xml"), MITSUBA_SCENE).unwrap();
+    // An integrator plexus substitutes: the import warning every scene verb must print, line 2.
+    let xml = mitsuba_scene("\n  <integrator type=\"sppm\"/>", "camera", "");
+    std::fs::write(dir.path().join("floor.xml"), xml).unwrap();
     let runs: [&[&str]; 4] = [
         &["render", "floor.xml", "--spp", "2", "--threads", "1", "--out", "render.exr"],
         &["info", "floor.xml"],

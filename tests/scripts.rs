@@ -320,9 +320,9 @@ fn fuzz_sh_runs_the_harness_and_reports_kept_failures() {
     assert_ok("scripts/fuzz.sh without failures", &fuzz(&keep));
     let call = std::fs::read_to_string(&log).expect("cargo was called");
     assert_eq!(call.trim(), "test --release --test fuzz replay -- --ignored --nocapture");
-    let harness = std::fs::read_to_string(root().join("tests/fuzz.rs")).expect("tests/fuzz.rs");
+    let harness = std::fs::read_to_string(root().join("tests/fuzz/main.rs")).expect("tests/fuzz/main.rs");
     for needle in ["fn replay", "PLEXUS_FUZZ_SEED", "PLEXUS_FUZZ_SECONDS", "PLEXUS_FUZZ_KEEP"] {
-        assert!(harness.contains(needle), "tests/fuzz.rs has no {needle}, which fuzz.sh relies on");
+        assert!(harness.contains(needle), "tests/fuzz/main.rs has no {needle}, which fuzz.sh relies on");
     }
     std::fs::create_dir_all(&keep).expect("mkdir keep");
     std::fs::write(keep.join("fail-1.input"), "x").expect("write");

@@ -2,34 +2,15 @@
 //! for, where they asked. Each test is a way a hostile or careless input once wrote elsewhere or
 //! replaced a file nobody asked to replace; each fails on a binary without its guard.
 
-use std::io::Write;
 use std::path::Path;
 
 mod common;
-use common::binary::{plexus, stderr, temp_dir, tiny_scene};
+use common::binary::{plexus, plexus_within, stderr, temp_dir, tiny_scene};
+use common::inputs::{mitsuba_scene, mkfifo, serialized, serialized_triangles, SerializedMesh};
 
-/// A Mitsuba scene (floor and lamp seen from above) whose sensor id is `sensor_id` and with
-/// `extra` before the closing tag.
-fn mitsuba(sensor_id: &str, extra: &str) -> String {
-    format!(
-        r#"<scene version="3.0.0">
-  <sensor type="perspective" id="{sensor_id}">
-    <float name="fov" value="50"/>
-    <transform name="to_world"><lookat origin="0, 3, 3" target="0, 0, 0" up="0, 1, 0"/></transform>
-    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/><rfilter type="box"/></film>
-  </sensor>
-  <shape type="rectangle">
-    <transform name="to_world"><scale value="2"/><rotate x="1" angle="-90"/></transform>
-    <bsdf type="diffuse"><rgb name="reflectance" value="0.5, 0.5, 0.5"/></bsdf>
-  </shape>
-  <shape type="rectangle">
-    <transform name="to_world"><scale value="0.5"/><rotate x="1" angle="90"/><translate y="2"/></transform>
-    <emitter type="area"><rgb name="radiance" value="5, 5, 5"/></emitter>
-  </shape>
-{extra}
-</scene>
-"#
-    )
+/// The shared Mitsuba scene with sensor id `sensor_id` and `tail` before `</scene>`.
+fn mitsuba(sensor_id: &str, tail: &str) -> String {
+    mitsuba_scene("", sensor_id, tail)
 }
 
 fn files_in(dir: &Path) -> Vec<String> {
@@ -89,36 +70,6 @@ fn scene_outputs_outside_the_current_directory_are_refused() {
     assert!(dir.path().join("out/x.png").is_file());
 }
 
-/// A `.serialized` file with one triangle mesh (format version 4).
-fn write_serialized(path: &Path, meshes: usize) {
-    let mut data = Vec::new();
-    let mut offsets = Vec::new();
-    for m in 0..meshes {
-        offsets.push(data.len() as u64);
-        data.extend_from_slice(&0x041Cu16.to_le_bytes());
-        data.extend_from_slice(&4u16.to_le_bytes());
-        let mut body = Vec::new();
-        body.extend_from_slice(&0u32.to_le_bytes()); // flags: positions and indices only
-        body.extend_from_slice(b"mesh\0");
-        body.extend_from_slice(&3u64.to_le_bytes());
-        body.extend_from_slice(&1u64.to_le_bytes());
-        for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0 + m as f32] {
-            body.extend_from_slice(&v.to_le_bytes());
-        }
-        for i in [0u32, 1, 2] {
-            body.extend_from_slice(&i.to_le_bytes());
-        }
-        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
-        z.write_all(&body).unwrap();
-        data.extend_from_slice(&z.finish().unwrap());
-    }
-    for o in &offsets {
-        data.extend_from_slice(&o.to_le_bytes());
-    }
-    data.extend_from_slice(&(meshes as u32).to_le_bytes());
-    std::fs::write(path, data).unwrap();
-}
-
 /// `plexus import` converts `.serialized` meshes without writing through a link, replacing a file
 /// it did not make, or letting two sources of the same name share one PLY.
 #[test]
@@ -127,8 +78,8 @@ fn import_never_writes_through_links_or_replaces_files() {
     let d = dir.path();
     std::fs::create_dir_all(d.join("a")).unwrap();
     std::fs::create_dir_all(d.join("b")).unwrap();
-    write_serialized(&d.join("a/m.serialized"), 1);
-    write_serialized(&d.join("b/m.serialized"), 2);
+    std::fs::write(d.join("a/m.serialized"), serialized_triangles(1)).unwrap();
+    std::fs::write(d.join("b/m.serialized"), serialized_triangles(2)).unwrap();
     let victim = temp_dir("trust-victim");
     let victim_file = victim.path().join("anything");
     std::fs::write(&victim_file, "keep me").unwrap();
@@ -258,38 +209,6 @@ fn resume_writes_only_below_the_state_files_directory() {
     assert!(err.contains("writes") && err.contains("sub/img.exr"), "{err}");
 }
 
-/// `plexus ARGS` in `cwd` as `plexus` runs it, killed after `seconds` (then the test fails: the
-/// input made plexus hang).
-fn plexus_within(args: &[&str], cwd: &Path, seconds: u64) -> std::process::Output {
-    use std::process::{Command, Stdio};
-    let mut child = Command::new(env!("CARGO_BIN_EXE_plexus"))
-        .args(args)
-        .current_dir(cwd)
-        .env("CI", "true")
-        .env_remove("RUST_BACKTRACE")
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run plexus");
-    let start = std::time::Instant::now();
-    while child.try_wait().expect("wait").is_none() {
-        if start.elapsed().as_secs() >= seconds {
-            child.kill().ok();
-            let out = child.wait_with_output().expect("output");
-            panic!("plexus {args:?} still ran after {seconds} s: {}", String::from_utf8_lossy(&out.stderr));
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    child.wait_with_output().expect("output")
-}
-
-fn mkfifo(path: &Path) {
-    let c = std::ffi::CString::new(path.to_str().expect("UTF-8 path")).expect("no NUL");
-    // SAFETY: `c` is a NUL-terminated path that outlives the call.
-    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0, "mkfifo {}", path.display());
-}
-
 /// One line `error: ...` containing every needle, exit 2.
 fn assert_one_line_error(o: &std::process::Output, needles: &[&str]) {
     let err = stderr(o);
@@ -359,26 +278,17 @@ fn deep_and_exploding_xml_is_refused() {
     assert_one_line_error(&o, &["elements", "refused as unbounded"]);
 }
 
-/// A `.serialized` header declaring 2^31 triangles in 80 bytes is an error, not an abort on a
+/// A `.serialized` header declaring 2^31 triangles in under 100 bytes is an error, not an abort on a
 /// 24 GiB allocation.
 #[test]
 fn a_serialized_header_cannot_size_an_allocation() {
     let dir = temp_dir("trust-serialized-size");
     let d = dir.path();
-    let mut body = Vec::new();
-    body.extend_from_slice(&0u32.to_le_bytes());
-    body.extend_from_slice(b"m\0");
-    body.extend_from_slice(&3u64.to_le_bytes());
-    body.extend_from_slice(&(1u64 << 31).to_le_bytes());
-    for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0] {
-        body.extend_from_slice(&v.to_le_bytes());
-    }
-    let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
-    z.write_all(&body).unwrap();
-    let mut data = vec![0x1C, 0x04, 4, 0];
-    data.extend_from_slice(&z.finish().unwrap());
-    data.extend_from_slice(&0u64.to_le_bytes());
-    data.extend_from_slice(&1u32.to_le_bytes());
+    // Three vertices and no triangle data behind a header declaring 2^31 triangles.
+    let mut lying = SerializedMesh::triangle(1.0);
+    (lying.triangles, lying.declared_triangles) = (Vec::new(), 1 << 31);
+    let data = serialized(&[lying]);
+    assert!(data.len() < 100, "{} bytes", data.len());
     std::fs::write(d.join("big.serialized"), &data).unwrap();
     let shape = "<shape type=\"serialized\"><string name=\"filename\" value=\"big.serialized\"/></shape>";
     std::fs::write(d.join("scene.xml"), mitsuba("cam", shape)).unwrap();
@@ -502,23 +412,9 @@ fn messages_name_what_the_user_gave() {
     let dir = temp_dir("trust-messages");
     let d = dir.path();
     // A mesh whose triangle names vertex 5 of 3.
-    let mut body = Vec::new();
-    body.extend_from_slice(&0u32.to_le_bytes());
-    body.extend_from_slice(b"m\0");
-    body.extend_from_slice(&3u64.to_le_bytes());
-    body.extend_from_slice(&1u64.to_le_bytes());
-    for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0] {
-        body.extend_from_slice(&v.to_le_bytes());
-    }
-    for i in [0u32, 1, 5] {
-        body.extend_from_slice(&i.to_le_bytes());
-    }
-    let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
-    z.write_all(&body).unwrap();
-    let mut data = vec![0x1C, 0x04, 4, 0];
-    data.extend_from_slice(&z.finish().unwrap());
-    data.extend_from_slice(&0u64.to_le_bytes());
-    data.extend_from_slice(&1u32.to_le_bytes());
+    let mut bad = SerializedMesh::triangle(1.0);
+    bad.triangles = vec![[0, 1, 5]];
+    let data = serialized(&[bad]);
     std::fs::write(d.join("bad.serialized"), &data).unwrap();
     let shape = "<shape type=\"serialized\"><string name=\"filename\" value=\"bad.serialized\"/></shape>";
     std::fs::write(d.join("scene.xml"), mitsuba("cam", shape)).unwrap();

@@ -56,3 +56,48 @@ emission = { radiance = [4.0, 4.0, 4.0] }
 transform = { scale = [0.5, 0.5, 1.0], rotate = { axis = [1, 0, 0], angle = 90 }, translate = [0.0, 2.0, 0.0] }
 {EXTRA}
 "#;
+
+/// Runs `binary ARGS` in `cwd` as [`plexus`] does (`CI=true`, no backtraces, no standard input),
+/// killing it after `seconds`: its exit status and stderr (stdout is discarded), or `None` when it
+/// had to be killed. A hang detector, not a time bound: callers give it orders of magnitude of
+/// slack. Stderr is read on a thread so a chatty child cannot block on a full pipe.
+pub fn run_within(binary: &Path, args: &[&str], cwd: &Path, seconds: u64) -> Option<Output> {
+    use std::io::Read;
+    use std::process::Stdio;
+    let mut child = Command::new(binary)
+        .args(args)
+        .current_dir(cwd)
+        .env("CI", "true")
+        .env_remove("RUST_BACKTRACE")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn plexus");
+    let mut pipe = child.stderr.take().expect("stderr");
+    let reader = std::thread::spawn(move || {
+        let mut bytes = Vec::new();
+        let _ = pipe.read_to_end(&mut bytes);
+        bytes
+    });
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(seconds);
+    loop {
+        if let Some(status) = child.try_wait().expect("wait") {
+            let stderr = reader.join().unwrap_or_default();
+            return Some(Output { status, stdout: Vec::new(), stderr });
+        }
+        if std::time::Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+}
+
+/// [`run_within`] for this build's `plexus`, failing the test when it had to be killed (the
+/// input made plexus hang).
+pub fn plexus_within(args: &[&str], cwd: &Path, seconds: u64) -> Output {
+    run_within(Path::new(env!("CARGO_BIN_EXE_plexus")), args, cwd, seconds)
+        .unwrap_or_else(|| panic!("plexus {args:?} still ran after {seconds} s"))
+}

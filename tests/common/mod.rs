@@ -5,4 +5,5 @@
 pub mod agreement;
 pub mod binary;
 pub mod ensemble;
+pub mod inputs;
 pub mod scenes;
