@@ -166,10 +166,6 @@ pub fn load_mitsuba(
         }
     })?;
     loaded.scene.source = Some(path.to_path_buf());
-    // The importer writes no outputs (a Mitsuba file names none plexus takes); a rendered XML
-    // scene writes where the command line says, or beside the current directory's stem.
-    debug_assert!(loaded.render.outputs.is_empty());
-    loaded.render.outputs.clear();
     Ok((loaded, imported.warnings))
 }
 

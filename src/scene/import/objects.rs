@@ -253,27 +253,27 @@ impl Obj {
     /// [`Obj::float`] that must lie in `range`: a value outside it means nothing (a month 13, a
     /// latitude 1000) and is refused, naming the range, instead of rendering something else.
     pub fn float_in(&self, name: &str, default: f64, range: std::ops::RangeInclusive<f64>) -> Result<f64, ImportError> {
-        let v = self.float(name, default)?;
-        if !range.contains(&v) {
-            let loc = self.props.iter().find(|p| p.name == name).map_or(&self.loc, |p| &p.loc);
-            return Err(ImportError::at(
-                loc,
-                format!("'{name}' of {} must be in [{}, {}], got {v}", self.describe(), range.start(), range.end()),
-            ));
-        }
-        Ok(v)
+        self.within(name, self.float(name, default)?, range)
     }
     /// [`Obj::int`] that must lie in `range` (see [`Obj::float_in`]).
     pub fn int_in(&self, name: &str, default: i64, range: std::ops::RangeInclusive<i64>) -> Result<i64, ImportError> {
-        let v = self.int(name, default)?;
-        if !range.contains(&v) {
-            let loc = self.props.iter().find(|p| p.name == name).map_or(&self.loc, |p| &p.loc);
-            return Err(ImportError::at(
-                loc,
-                format!("'{name}' of {} must be in [{}, {}], got {v}", self.describe(), range.start(), range.end()),
-            ));
+        self.within(name, self.int(name, default)?, range)
+    }
+    /// `v`, the value of parameter `name`, if it lies in `range`; else an error at the parameter.
+    fn within<T: PartialOrd + std::fmt::Display>(
+        &self,
+        name: &str,
+        v: T,
+        range: std::ops::RangeInclusive<T>,
+    ) -> Result<T, ImportError> {
+        if range.contains(&v) {
+            return Ok(v);
         }
-        Ok(v)
+        let loc = self.props.iter().find(|p| p.name == name).map_or(&self.loc, |p| &p.loc);
+        Err(ImportError::at(
+            loc,
+            format!("'{name}' of {} must be in [{}, {}], got {v}", self.describe(), range.start(), range.end()),
+        ))
     }
     pub fn int(&self, name: &str, default: i64) -> Result<i64, ImportError> {
         match self.take(name) {
