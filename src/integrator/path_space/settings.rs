@@ -101,10 +101,13 @@ impl PmltSettings {
             (None, None) => {}
             (Some(r1), Some(r2)) if r1 > 0.0 && r1 < r2 && r2.is_finite() => {}
             (r1, r2) => {
+                let show = |r: Option<f64>| r.map_or("unset".to_string(), |r| r.to_string());
                 return bad(format!(
-                    "lens_r1 = {r1:?}, lens_r2 = {r2:?}: expected both unset (Veach's range) or 0 < lens_r1 < \
-                     lens_r2, finite, in pixels"
-                ))
+                    "lens_r1 = {}, lens_r2 = {}: expected both unset (Veach's range) or 0 < lens_r1 < lens_r2, \
+                     finite, in pixels",
+                    show(r1),
+                    show(r2)
+                ));
             }
         }
         Ok(settings)
