@@ -22,7 +22,7 @@
 
 use super::bidirectional::{Bidirectional, LengthKernel};
 use super::caustic::{Caustic, CausticKernel};
-use super::kernel::{DirectionKernel, RasterKernel};
+use super::kernel::DirectionKernel;
 use super::lens::Lens;
 use super::multichain::{MultiChain, MultiChainKernel};
 use super::portal::PortalPerturbation;
@@ -202,12 +202,12 @@ impl Pmlt {
         })
     }
 
-    /// The strategies of the chain for `scene` (its film sets the lens kernel's range): the
-    /// bidirectional mutation and Veach's perturbations, in the statistics' order. A weight of 0
-    /// leaves a strategy out.
+    /// The strategies of the chain for `scene` (its film sets the lens kernel's range unless the
+    /// settings do, `PmltSettings::lens_kernel`): the bidirectional mutation and Veach's
+    /// perturbations, in the statistics' order. A weight of 0 leaves a strategy out.
     pub fn strategies(&self, scene: &Scene) -> StrategySet {
         let s = &self.settings;
-        let lens = RasterKernel::veach(scene.camera.width, scene.camera.height);
+        let lens = s.lens_kernel(scene.camera.width, scene.camera.height);
         let mut entries: Vec<Box<dyn Mutation>> =
             vec![Box::new(Entry { strategy: self.bidirectional, kernel: LengthKernel, weight: s.bidirectional })];
         if s.lens > 0.0 {

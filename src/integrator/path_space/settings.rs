@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::kernel::RasterKernel;
 use crate::integrator::bdpt::MisHeuristic;
 use crate::integrator::pss::settings::{MAX_BOOTSTRAP, MAX_CHAINS, MAX_DEPTH};
 use crate::integrator::{settings_from_table, RenderError};
@@ -34,6 +35,14 @@ pub struct PmltSettings {
     /// which it shares its weight; offered only at paths that cross a `[[portals]]` quad, so it
     /// costs nothing in a scene without portals; 0 turns it off).
     pub portal: f64,
+    /// The lens perturbation's offset range [r_1, r_2] in pixels (`kernel::RasterKernel`), which
+    /// also sets the caustic perturbation's angular range (`caustic::CausticKernel::from_lens`).
+    /// Unset (the default): Veach's range for the film, r_1 = 0.1 px and r_2 the radius of a disc
+    /// of 5% of the image (`RasterKernel::veach`). Both set: that range, 0 < r_1 < r_2, for
+    /// instance the portal paper's Fig. 4 configuration, which ran the lens and portal kernels
+    /// over the same relative range.
+    pub lens_r1: Option<f64>,
+    pub lens_r2: Option<f64>,
 }
 
 impl Default for PmltSettings {
@@ -48,6 +57,8 @@ impl Default for PmltSettings {
             caustic: 2.0,
             multi_chain: 2.0,
             portal: 2.0,
+            lens_r1: None,
+            lens_r2: None,
         }
     }
 }
@@ -86,7 +97,28 @@ impl PmltSettings {
                 return bad(format!("{name} = {w}: expected a weight >= 0 (0 turns the perturbation off)"));
             }
         }
+        match (settings.lens_r1, settings.lens_r2) {
+            (None, None) => {}
+            (Some(r1), Some(r2)) if r1 > 0.0 && r1 < r2 && r2.is_finite() => {}
+            (r1, r2) => {
+                let show = |r: Option<f64>| r.map_or("unset".to_string(), |r| r.to_string());
+                return bad(format!(
+                    "lens_r1 = {}, lens_r2 = {}: expected both unset (Veach's range) or 0 < lens_r1 < lens_r2, \
+                     finite, in pixels",
+                    show(r1),
+                    show(r2)
+                ));
+            }
+        }
         Ok(settings)
+    }
+
+    /// The lens perturbation's kernel for a `width` × `height` film: the set range, else Veach's.
+    pub fn lens_kernel(&self, width: u32, height: u32) -> RasterKernel {
+        match (self.lens_r1, self.lens_r2) {
+            (Some(r1), Some(r2)) => RasterKernel { r1, r2 },
+            _ => RasterKernel::veach(width, height),
+        }
     }
 }
 
@@ -111,10 +143,25 @@ mod tests {
             ("multi_chain = inf", "multi_chain"),
             ("portal = -1.0", "portal"),
             ("large_step_probability = 0.3", "large_step_probability"),
+            ("lens_r1 = 0.5", "lens_r2"),
+            ("lens_r2 = 4.0", "lens_r1"),
+            ("lens_r1 = 4.0\nlens_r2 = 0.5", "lens_r1"),
+            ("lens_r1 = 0.0\nlens_r2 = 0.5", "lens_r1"),
+            ("lens_r1 = 0.5\nlens_r2 = inf", "lens_r2"),
         ] {
             let t: toml::Table = toml::from_str(bad).expect("toml");
             let err = PmltSettings::from_params(&t).err().unwrap_or_else(|| panic!("{bad} accepted")).to_string();
             assert!(err.contains(needle), "{bad}: {err}");
         }
+    }
+
+    /// The lens kernel's range: Veach's for the film when unset, the setting's when set.
+    #[test]
+    fn lens_kernel_range() {
+        let s = PmltSettings::from_params(&toml::Table::new()).expect("defaults");
+        assert_eq!(s.lens_kernel(64, 48), RasterKernel::veach(64, 48));
+        let t: toml::Table = toml::from_str("lens_r1 = 0.25\nlens_r2 = 4.0").expect("toml");
+        let s = PmltSettings::from_params(&t).expect("a range");
+        assert_eq!(s.lens_kernel(64, 48), RasterKernel { r1: 0.25, r2: 4.0 });
     }
 }
