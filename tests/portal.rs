@@ -21,15 +21,15 @@ use std::path::Path;
 mod common;
 use common::agreement::{
     assert_shares_agree, assert_shares_agree_with_image, image_share_agreement, region_means, region_means_on, GRID,
-    RENDERS, Z_CRITICAL,
+    Z_CRITICAL,
 };
+use common::ensemble::chain_renders;
 use common::scenes::{reference, scene};
 
 use plexus::film::exr_io::read_exr;
 use plexus::film::Image;
 use plexus::integrator::path_space::portal::PortalPerturbation;
 use plexus::integrator::path_space::Pmlt;
-use plexus::integrator::{Budget, Integrator, NoProgress, RenderJob};
 use plexus::scene::Scene;
 
 fn root() -> &'static Path {
@@ -43,20 +43,7 @@ fn portal_renders(scene: &Scene, params: &str, mpp: u64, omit_geometry: bool) ->
     let table: toml::Table = toml::from_str(params).expect("test parameters");
     let mut pmlt = Pmlt::from_params(&table).expect("settings");
     pmlt.portal = PortalPerturbation { omit_geometry };
-    let mut stats = serde_json::Value::Null;
-    let images = (1..=RENDERS)
-        .map(|k| {
-            let job = RenderJob { budget: Budget::SamplesPerPixel(mpp), seed: k * 7919 + 3, threads: 2 };
-            let out = pmlt.render(scene, &job, &NoProgress).expect("render");
-            assert!(out.image.all_finite(), "non-finite pixels");
-            assert_eq!(out.counters.nonfinite_dropped, 0, "non-finite contributions");
-            if k == 1 {
-                stats = out.extra_stats;
-            }
-            out.image
-        })
-        .collect();
-    (images, stats)
+    chain_renders(&pmlt, scene, mpp, 3)
 }
 
 /// The region means (`region_means`, 4×4) of 16 pmlt renders ([`portal_renders`]), and the first

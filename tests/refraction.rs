@@ -44,14 +44,12 @@
 
 mod common;
 use common::agreement::{assert_agree, estimate};
-use common::ensemble::{print_strategies, share_test, ShareTest};
+use common::ensemble::{chain_renders, print_strategies, share_test, ShareTest};
 use common::scenes::{reference, scene};
 
-use plexus::film::Image;
 use plexus::integrator::ensemble::render::Emlt;
 use plexus::integrator::path_space::Pmlt;
-use plexus::integrator::{create, Budget, Integrator, NoProgress, RenderJob};
-use plexus::scene::Scene;
+use plexus::integrator::{create, Integrator};
 
 /// The rough slab.
 const ROUGH: &str = "glass-lamp-rough";
@@ -60,25 +58,6 @@ const ROUGH: &str = "glass-lamp-rough";
 /// (a region's share depends on the mutations per render, not its pixels).
 const SIZE: u32 = 32;
 const EMLT_SIZE: u32 = 8;
-
-/// `common::agreement::RENDERS` renders of `scene` by `integrator` with seeds `k · 7919 +
-/// seed_offset`, each finite and dropping nothing, and the first render's statistics.
-fn renders(integrator: &dyn Integrator, scene: &Scene, mpp: u64, seed_offset: u64) -> (Vec<Image>, serde_json::Value) {
-    let mut stats = serde_json::Value::Null;
-    let images = (1..=common::agreement::RENDERS)
-        .map(|k| {
-            let job = RenderJob { budget: Budget::SamplesPerPixel(mpp), seed: k * 7919 + seed_offset, threads: 2 };
-            let out = integrator.render(scene, &job, &NoProgress).expect("render");
-            assert!(out.image.all_finite(), "non-finite pixels");
-            assert_eq!(out.counters.nonfinite_dropped, 0, "non-finite contributions");
-            if k == 1 {
-                stats = out.extra_stats;
-            }
-            out.image
-        })
-        .collect();
-    (images, stats)
-}
 
 /// A strategy's (selected, accepted) in a render's statistics, by name.
 fn strategy_counts(stats: &serde_json::Value, name: &str) -> (u64, u64) {
@@ -140,7 +119,7 @@ fn share_test_of(run: &Run, wrong: bool) -> ShareTest {
     let chain = &run.chain;
     let size = if chain.method == "emlt" { EMLT_SIZE } else { SIZE };
     let scene = scene(run.scene, size);
-    let (images, stats) = renders(integrator(chain, wrong).as_ref(), &scene, run.mpp, run.seed_offset);
+    let (images, stats) = chain_renders(integrator(chain, wrong).as_ref(), &scene, run.mpp, run.seed_offset);
     let variant = if wrong { ", without the refraction measure" } else { "" };
     let what =
         format!("{} ({}{variant}, {} per pixel) vs the reference on {}", chain.method, chain.label, run.mpp, run.scene);

@@ -35,13 +35,26 @@ pub fn emlt_renders(scene: &Scene, emlt: &Emlt, mpp: u64) -> (Vec<Image>, serde_
 /// [`emlt_renders`] with the seeds `k · 7919 + seed_offset`, k = 1..=`RENDERS` (another seed
 /// offset: another, independent set of renders).
 pub fn emlt_renders_seeded(scene: &Scene, emlt: &Emlt, mpp: u64, seed_offset: u64) -> (Vec<Image>, serde_json::Value) {
+    chain_renders(emlt, scene, mpp, seed_offset)
+}
+
+/// `RENDERS` renders of `scene` by `integrator` at `mpp` mutations (samples) per pixel, seeds
+/// k·7919 + `seed_offset`, 2 threads, each finite and dropping nothing; and the first render's
+/// statistics.
+pub fn chain_renders(
+    integrator: &dyn Integrator,
+    scene: &Scene,
+    mpp: u64,
+    seed_offset: u64,
+) -> (Vec<Image>, serde_json::Value) {
     let mut stats = serde_json::Value::Null;
     let images = (1..=RENDERS)
         .map(|k| {
             let job = RenderJob { budget: Budget::SamplesPerPixel(mpp), seed: k * 7919 + seed_offset, threads: 2 };
-            let out = emlt.render(scene, &job, &NoProgress).expect("render");
-            assert!(out.image.all_finite(), "emlt: non-finite pixels");
-            assert_eq!(out.counters.nonfinite_dropped, 0, "emlt: non-finite contributions");
+            let out = integrator.render(scene, &job, &NoProgress).expect("render");
+            let name = integrator.name();
+            assert!(out.image.all_finite(), "{name}: non-finite pixels");
+            assert_eq!(out.counters.nonfinite_dropped, 0, "{name}: non-finite contributions");
             if k == 1 {
                 stats = out.extra_stats;
             }
