@@ -2,7 +2,8 @@
 //! pass boundaries: the render finishes its pass, and the command line writes the image, the JSON
 //! and a checkpoint before exiting with 130. A second signal exits with 130 without writing
 //! anything more, and leaves no temporary file behind: every output is written by
-//! [`write_atomically`] (a hidden `.*.plexus-tmp-*` file renamed into place when complete), and a
+//! [`write_atomically`] (a hidden `.*.plexus-tmp-HOST-PID-*` file renamed into place when complete;
+//! the next write of the same file removes those a killed process left), and a
 //! second signal that finds such a write under way lets that one file finish (or fail) and exits
 //! when it ends; with none under way it exits at once. A third signal exits at once regardless,
 //! removing the temporary files being written first ([`TempGuard`]).
@@ -118,7 +119,9 @@ impl Drop for FileWriting {
 
 /// Writes the file `path` whole or not at all, under Ctrl-C too: `write` fills a hidden temporary
 /// file beside it (given its path and the open file; writers that open it by name may ignore the
-/// file), which is then renamed over `path`. On any error the temporary file is removed. With
+/// file), which is then renamed over `path`. On any error the temporary file is removed; the
+/// temporary files of earlier writes of `path` by processes that were killed are removed first
+/// (`remove_stale_temp_files`). With
 /// `keep_extension` the temporary name ends in `path`'s extension (OpenImageIO chooses the format
 /// by it). The file is created with mode 0666 before the umask, as `std::fs::write` would create it
 /// (tempfile's own default is 0600).
@@ -133,12 +136,14 @@ pub fn write_atomically<E>(
     let _writing = FileWriting::enter();
     let dir = directory_of(path);
     let name = |p: Option<&std::ffi::OsStr>| p.map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let (prefix, suffix) = match (keep_extension, path.extension()) {
+    let (base, suffix) = match (keep_extension, path.extension()) {
         (true, Some(ext)) => (format!(".{}.plexus-tmp-", name(path.file_stem())), format!(".{}", name(Some(ext)))),
         _ => (format!(".{}.plexus-tmp-", name(path.file_name())), String::new()),
     };
+    let owner = TempOwner::this_process();
+    remove_stale_temp_files(dir, &base, &suffix, &owner);
     let mut file = tempfile::Builder::new()
-        .prefix(&prefix)
+        .prefix(&format!("{base}{}-", owner.tag()))
         .suffix(&suffix)
         .permissions(std::fs::Permissions::from_mode(0o666))
         .tempfile_in(dir)
@@ -149,6 +154,74 @@ pub fn write_atomically<E>(
     write(&temp, file.as_file_mut())?;
     file.persist(path).map_err(|e| io_error(e.error))?;
     Ok(())
+}
+
+/// Who writes a temporary file, as its name records it (`.NAME.plexus-tmp-HOST-PID-XXXXXX`): the
+/// host, so that a process on another machine writing into a shared directory (a cluster's
+/// batch) is never taken for a dead one here, and the process id.
+struct TempOwner {
+    host: String,
+    pid: u32,
+}
+
+impl TempOwner {
+    fn this_process() -> TempOwner {
+        TempOwner { host: host_name(), pid: std::process::id() }
+    }
+
+    fn tag(&self) -> String {
+        format!("{}-{}", self.host, self.pid)
+    }
+}
+
+/// This machine's name, reduced to characters that cannot be confused with the name's
+/// separators ('-' included); "host" when it cannot be read.
+fn host_name() -> String {
+    let mut buf = [0u8; 256];
+    // SAFETY: `buf` is writable for its length; gethostname writes at most that many bytes.
+    let ok = unsafe { libc::gethostname(buf.as_mut_ptr() as *mut libc::c_char, buf.len()) } == 0;
+    let len = buf.iter().position(|&b| b == 0).unwrap_or(buf.len());
+    let name: String =
+        String::from_utf8_lossy(&buf[..len]).chars().filter(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
+    if ok && !name.is_empty() {
+        name
+    } else {
+        "host".into()
+    }
+}
+
+/// Whether process `pid` of this machine is gone: `kill(pid, 0)` fails with ESRCH. A process
+/// that exists but belongs to another user (EPERM) is alive.
+fn process_is_gone(pid: u32) -> bool {
+    let Ok(pid) = libc::pid_t::try_from(pid) else { return false };
+    // SAFETY: signal 0 sends nothing; it only checks that the process exists.
+    let r = unsafe { libc::kill(pid, 0) };
+    r == -1 && std::io::Error::last_os_error().raw_os_error() == Some(libc::ESRCH)
+}
+
+/// Removes the temporary files of earlier writes of the same file (`base` and `suffix` of its
+/// temporary names) left by processes of this machine that no longer exist: a process killed
+/// with SIGKILL (or a crash of the machine) mid-write cannot remove its own. Only regular files
+/// are removed, never links; files of live processes and of other machines are left alone, as
+/// are names that do not parse as `base` HOST-PID-XXXXXX `suffix` (older plexus versions wrote
+/// no owner). Best effort: a directory that cannot be listed is left as it is.
+fn remove_stale_temp_files(dir: &Path, base: &str, suffix: &str, owner: &TempOwner) {
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    let host_prefix = format!("{base}{}-", owner.host);
+    for entry in entries.flatten() {
+        let file_name = entry.file_name();
+        let Some(name) = file_name.to_str() else { continue };
+        let Some(rest) = name.strip_prefix(&host_prefix).and_then(|r| r.strip_suffix(suffix)) else { continue };
+        let Some((pid, random)) = rest.split_once('-') else { continue };
+        let Ok(pid) = pid.parse::<u32>() else { continue };
+        if random.is_empty() || pid == owner.pid || !process_is_gone(pid) {
+            continue;
+        }
+        let path = entry.path();
+        if std::fs::symlink_metadata(&path).is_ok_and(|m| m.file_type().is_file()) {
+            let _ = std::fs::remove_file(&path);
+        }
+    }
 }
 
 /// The directory a file `path` is created in: its parent, or "." for a bare name.
@@ -215,6 +288,51 @@ impl Drop for TempGuard {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A write removes the temporary files a killed process of this machine left for the same
+    /// file, and nothing else: not a live process's, not another machine's, not another file's,
+    /// not a link, not a name without an owner.
+    #[test]
+    fn a_write_removes_what_a_killed_writer_left() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let d = dir.path();
+        let host = host_name();
+        let mut child = std::process::Command::new("true").spawn().expect("spawn true");
+        let dead = child.id();
+        child.wait().expect("wait");
+        assert!(process_is_gone(dead), "the child has exited");
+        let stale = d.join(format!(".o.pxstate.plexus-tmp-{host}-{dead}-aB3xYz"));
+        let stale_exr = d.join(format!(".o.plexus-tmp-{host}-{dead}-Qw12er.exr"));
+        let live = d.join(format!(".o.pxstate.plexus-tmp-{host}-1-aB3xYz"));
+        let elsewhere = d.join(format!(".o.pxstate.plexus-tmp-otherhost-{dead}-aB3xYz"));
+        let other_file = d.join(format!(".p.pxstate.plexus-tmp-{host}-{dead}-aB3xYz"));
+        let unowned = d.join(".o.pxstate.plexus-tmp-aB3xYz");
+        let target = d.join("kept");
+        let link = d.join(format!(".o.pxstate.plexus-tmp-{host}-{dead}-LiNk00"));
+        for p in [&stale, &stale_exr, &live, &elsewhere, &other_file, &unowned, &target] {
+            std::fs::write(p, "x").expect("write");
+        }
+        std::os::unix::fs::symlink(&target, &link).expect("symlink");
+        let write = |name: &str, keep_extension: bool| {
+            write_atomically(&d.join(name), keep_extension, |e| e, |_, f| std::io::Write::write_all(f, b"state"))
+                .expect("write")
+        };
+        write("o.pxstate", false);
+        assert!(!stale.exists(), "a dead process's temporary file of the same file is removed");
+        for p in [&stale_exr, &live, &elsewhere, &other_file, &unowned, &target] {
+            assert!(p.exists(), "{} is not this write's to remove", p.display());
+        }
+        assert!(std::fs::symlink_metadata(&link).is_ok(), "a link is never removed");
+        write("o.exr", true);
+        assert!(!stale_exr.exists(), "with the extension kept too");
+        let left: Vec<_> = std::fs::read_dir(d)
+            .expect("list")
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.contains(&format!("-{}-", std::process::id())))
+            .collect();
+        assert!(left.is_empty(), "the writes left their own temporary files: {left:?}");
+    }
 
     /// What the second signal does: a registered temporary file is removed, an unregistered one
     /// (its guard dropped) is not, and the guard of a removed file drops cleanly.

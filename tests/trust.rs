@@ -177,6 +177,45 @@ fn an_interrupt_never_replaces_another_state_file() {
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
+/// A checkpoint write killed with SIGKILL leaves its hidden temporary file: the next write of
+/// the same file removes it when the process that wrote it is gone from this machine, and leaves
+/// a live process's (pid 1 here) and another machine's alone.
+#[test]
+fn a_killed_writers_temporary_files_are_removed() {
+    let dir = temp_dir("trust-stale-temp");
+    let d = dir.path();
+    std::fs::write(d.join("s.toml"), tiny_scene("[16, 12]", "")).unwrap();
+    // The host name as the temporary names carry it: its letters, digits and underscores.
+    let host: String = std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .unwrap()
+        .trim()
+        .chars()
+        .filter(|c| c.is_ascii_alphanumeric() || *c == '_')
+        .collect();
+    let mut child = std::process::Command::new("true").spawn().unwrap();
+    let dead = child.id();
+    child.wait().unwrap();
+    let stale =
+        [format!(".run.pxstate.plexus-tmp-{host}-{dead}-k1LLed"), format!(".img.plexus-tmp-{host}-{dead}-k1LLed.exr")];
+    let kept = [
+        format!(".run.pxstate.plexus-tmp-{host}-1-l1Ving"),
+        format!(".run.pxstate.plexus-tmp-elsewhere-{dead}-r3Mote"),
+    ];
+    for name in stale.iter().chain(&kept) {
+        std::fs::write(d.join(name), "partial").unwrap();
+    }
+    let args = ["render", "s.toml", "--spp", "4", "--threads", "1", "--checkpoint", "run.pxstate", "--out", "img.exr"];
+    let o = plexus(&args, d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let left = files_in(d);
+    for name in &stale {
+        assert!(!left.contains(name), "{name} was left: {left:?}");
+    }
+    for name in &kept {
+        assert!(left.contains(name), "{name} was removed: {left:?}");
+    }
+}
+
 /// Without --out, resume writes only below the state file's directory, and says where first.
 #[test]
 fn resume_writes_only_below_the_state_files_directory() {
@@ -404,9 +443,10 @@ fn meaningless_values_are_refused() {
 }
 
 /// Messages name what the user gave: a converted mesh the loader refuses is named by its
-/// `.serialized` file and shape index (not the temporary PLY nobody saw); resume's refusal of the
-/// state's own budget does not blame `--time`; a shard beyond the render's passes is refused
-/// instead of rendering nothing with exit 0.
+/// `.serialized` file and shape index (not the temporary PLY nobody saw); a broken texture's error
+/// is the one line on stderr (libpng printed its own first); resume's refusal of the
+/// state's own budget does not blame `--time`; a shard beyond the render's passes (or a chain
+/// render's chains) is refused instead of rendering nothing with exit 0.
 #[test]
 fn messages_name_what_the_user_gave() {
     let dir = temp_dir("trust-messages");
@@ -423,11 +463,35 @@ fn messages_name_what_the_user_gave() {
     assert_one_line_error(&o, &["mesh 0 of", "bad.serialized"]);
     assert!(!err.contains(".tmp") && !err.contains("bad_0.ply"), "{err}");
 
+    // A PNG texture cut off after its header: libpng's own report stays off stderr, whose one
+    // line is plexus's error naming the file.
+    std::fs::write(d.join("plain.toml"), tiny_scene("[4, 4]", "")).unwrap();
+    let o = plexus_within(&["render", "plain.toml", "--spp", "1", "--out", "whole.png"], d, 30);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let png = std::fs::read(d.join("whole.png")).unwrap();
+    std::fs::write(d.join("cut.png"), &png[..40]).unwrap();
+    let textured = tiny_scene("[16, 12]", "").replacen(
+        "reflectance = [0.5, 0.5, 0.5]",
+        "reflectance = { texture = \"bitmap\", file = \"cut.png\" }",
+        1,
+    );
+    std::fs::write(d.join("textured.toml"), textured).unwrap();
+    let o = plexus_within(&["render", "textured.toml", "--spp", "1", "--out", "t.exr"], d, 30);
+    assert_one_line_error(&o, &["cut.png"]);
+    assert!(!stderr(&o).contains("libpng"), "{}", stderr(&o));
+
     // 6 samples per pixel on 32×32 make one pass: shard 1/3 would render nothing.
     std::fs::write(d.join("s.toml"), tiny_scene("[32, 32]", "")).unwrap();
     let o = plexus_within(&["render", "s.toml", "--spp", "6", "--shard", "1/3", "--out", "s1.pxstate"], d, 30);
     assert_one_line_error(&o, &["shard 1/3 would render nothing", "at most 1 shards"]);
     assert!(!d.join("s1.pxstate").exists());
+    // A chain render's shards split its chains: with 2 chains, shard 2/3 would hold none.
+    for integrator in ["pssmlt", "pmlt"] {
+        let args = ["render", "s.toml", "--integrator", integrator, "--set", "chains=2", "--set", "bootstrap=1000"];
+        let o = plexus_within(&[&args[..], &["--spp", "4", "--shard", "2/3", "--out", "c2.pxstate"]].concat(), d, 30);
+        assert_one_line_error(&o, &["shard 2/3 would render nothing", "2 chains", "at most 2 shards"]);
+        assert!(!d.join("c2.pxstate").exists());
+    }
 
     // A state whose own budget is out of range (as a damaged or hand-made one could be).
     let o = plexus_within(&["render", "s.toml", "--spp", "700", "--out", "a.exr", "--stop-at-pass", "1"], d, 60);

@@ -69,6 +69,47 @@ pub enum ImageReadError {
     BadSize { path: PathBuf, width: i64, height: i64, channels: i64 },
 }
 
+/// While it lives, what C libraries write to file descriptor 2 is discarded; plexus's own
+/// messages are not lost: it holds Rust's stderr lock, so another thread's `eprintln!` waits for
+/// it instead of writing into the void. Redirects nothing if any step fails (stderr then shows
+/// the library's line, as without the guard).
+struct QuietStderr {
+    _lock: std::io::StderrLock<'static>,
+    saved: Option<std::os::fd::OwnedFd>,
+}
+
+impl QuietStderr {
+    fn new() -> QuietStderr {
+        use std::io::Write;
+        use std::os::fd::{AsRawFd, FromRawFd};
+        let mut lock = std::io::stderr().lock();
+        let _ = lock.flush();
+        let saved = (|| {
+            let null = std::fs::OpenOptions::new().write(true).open("/dev/null").ok()?;
+            // SAFETY: dup of the process's stderr; the new descriptor is owned by `saved`.
+            let copy = unsafe { libc::dup(libc::STDERR_FILENO) };
+            if copy < 0 {
+                return None;
+            }
+            // SAFETY: `copy` is a fresh descriptor nothing else owns.
+            let saved = unsafe { std::os::fd::OwnedFd::from_raw_fd(copy) };
+            // SAFETY: both descriptors are open; dup2 replaces descriptor 2 atomically.
+            (unsafe { libc::dup2(null.as_raw_fd(), libc::STDERR_FILENO) } >= 0).then_some(saved)
+        })();
+        QuietStderr { _lock: lock, saved }
+    }
+}
+
+impl Drop for QuietStderr {
+    fn drop(&mut self) {
+        use std::os::fd::AsRawFd;
+        if let Some(saved) = &self.saved {
+            // SAFETY: `saved` is open (owned here); dup2 puts the original stderr back.
+            unsafe { libc::dup2(saved.as_raw_fd(), libc::STDERR_FILENO) };
+        }
+    }
+}
+
 /// Reads the first subimage of `path` through OpenImageIO (any format it reads: PNG, JPEG, EXR,
 /// TGA, HDR, TIFF, ...).
 pub fn read_image(path: &Path) -> Result<ReadImage, ImageReadError> {
@@ -89,6 +130,9 @@ fn read_image_with(path: &Path, codes_for_8_bit: bool) -> Result<ReadImage, Imag
         .map_err(|message| ImageReadError::Oiio { path: path.to_path_buf(), message })?;
     let c = c_path(path).map_err(|_| ImageReadError::InvalidPath { path: path.to_path_buf() })?;
     let shim = shim().map_err(|message| ImageReadError::OiioUnavailable { path: path.to_path_buf(), message })?;
+    // libpng reports a broken file on stderr itself before OpenImageIO hands its reader the same
+    // text as the error this function returns: its line would precede plexus's one-line error.
+    let _quiet = QuietStderr::new();
     let mut msg = [0u8; 1024];
     let mut info = PlxImageInfo::default();
     // SAFETY: `c` is NUL-terminated, `info` and `msg` are valid for writes of their sizes.

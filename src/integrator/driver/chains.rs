@@ -104,9 +104,19 @@ pub struct ChainSession<'s> {
 }
 
 impl<'s> ChainSession<'s> {
-    /// Starts the render's clock.
-    pub fn new(session: &'s Session<'s>, chains: u64) -> ChainSession<'s> {
-        ChainSession { session, started: Instant::now(), earlier: Duration::ZERO, chains, total_passes: None }
+    /// Starts the render's clock. A shard holds the chains whose index it `contains` (every
+    /// `count`-th from its index): one whose index is not below `chains` would hold none, render
+    /// nothing and say it had succeeded, so it is refused.
+    pub fn new(session: &'s Session<'s>, chains: u64) -> Result<ChainSession<'s>, RenderError> {
+        if let Some(shard) = session.shard {
+            if shard.index >= chains {
+                return Err(RenderError::Limit(format!(
+                    "shard {shard} would render nothing: this render has {chains} chains, so it splits into at \
+                     most {chains} shards"
+                )));
+            }
+        }
+        Ok(ChainSession { session, started: Instant::now(), earlier: Duration::ZERO, chains, total_passes: None })
     }
 
     pub fn session(&self) -> &'s Session<'s> {

@@ -126,7 +126,7 @@ impl Pmlt {
         let pixels = (width * height) as u64;
         crate::integrator::check_budget(job.budget, scene.camera.width, scene.camera.height, "budget")?;
         let driver = Driver::new(job, scene.camera.width, scene.camera.height)?;
-        let mut cs = ChainSession::new(session, self.settings.chains);
+        let mut cs = ChainSession::new(session, self.settings.chains)?;
         let max_depth = self.settings.max_depth as usize;
         let ctx = PathContext { scene, max_depth };
         let bctx = self.bdpt_context(scene);

@@ -209,7 +209,7 @@ impl Mlt {
         let driver = Driver::new(job, width as u32, stacked_height)?;
         let rr = if self.settings.rr_depth == u32::MAX { usize::MAX } else { self.settings.rr_depth as usize };
         let ctx = crate::integrator::bdpt::BdptContext::new(scene, rr, self.settings.mis);
-        let mut cs = ChainSession::new(session, self.settings.chains);
+        let mut cs = ChainSession::new(session, self.settings.chains)?;
         let segment = pixels.div_ceil(self.settings.chains).max(1);
         let per_pass = segment * self.settings.chains;
         let shard = session.shard;
