@@ -18,7 +18,7 @@ tolerance (SCENES below, with its reason). Z = 5 (Welch's z over 17 comparisons 
                                           [--write-references]
 
 --write-references stores Mitsuba's mean image and its per-region means and standard errors in
-references/mitsuba/NAME.{exr,json}, which tests/crosscheck.rs checks plexus against without Mitsuba.
+references/mitsuba/NAME.{exr,json}, which tests/images/crosscheck.rs checks plexus against without Mitsuba.
 The committed references were made with (the budget is per scene; the defaults would make the
 interiors' references four times noisier, which is how a 9.5% regional error once hid under the
 bound):

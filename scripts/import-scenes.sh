@@ -2,7 +2,7 @@
 # Re-imports the seven Mitsuba scenes of scenes/mitsuba/ into scenes/imported/NAME.toml with
 # `plexus import`, and records each import's warnings in scenes/imported/NAME.warnings. The TOML
 # files refer to the meshes and textures where they are, in scenes/mitsuba/, by paths relative to
-# scenes/imported/; `tests/import.rs` checks that the committed files are exactly what the importer
+# scenes/imported/; `tests/images/import.rs` checks that the committed files are exactly what the importer
 # writes today. The XML paths written into the TOML comments and the warnings are relative to the
 # repository root, where this script runs.
 #

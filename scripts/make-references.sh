@@ -39,7 +39,7 @@ done
 # reference noise must stay well below the chains'.
 "$PLEXUS" reference scenes/breakfast-window.toml --integrator pt --spp $((SPP * 8)) --seed "$SEED" \
     --resolution 32x32 --set max_depth=8 --out references/breakfast-window.exr
-# breakfast-window's share test (tests/portal.rs) needs the reference's noise, which one image
+# breakfast-window's share test (tests/chains/portal.rs) needs the reference's noise, which one image
 # cannot give honestly (estimated from its pixels at 32×32, the room's edges count as noise): 16
 # independent pt renders of 2048 spp (seeds SEED + k), whose spread measures the reference side's
 # variance the same way the 16 pmlt renders measure theirs. Together 32,768 spp, as the image above.
@@ -51,7 +51,7 @@ done
 # The refraction scenes: a lamp sealed in a flat glass slab (smooth and rough) and a glass prism
 # under a lamp, whose light-direction refractions do not cancel (the measure factor of
 # src/integrator/path_space/density.rs): the path-space and primary-sample-space MLT agreement
-# tests (tests/refraction.rs) compare their region shares with these, at 32×32.
+# tests (tests/chains/refraction.rs) compare their region shares with these, at 32×32.
 for s in glass-lamp glass-lamp-rough glass-prism; do
     "$PLEXUS" reference "scenes/$s.toml" --integrator pt --spp "$SPP" --seed "$SEED" \
         --resolution 128x128 --set max_depth=8 --out "references/$s.exr"

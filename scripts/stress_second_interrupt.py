@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Second-Ctrl-C stress: does a render interrupted twice leave anything but complete outputs?
 
-tests/interrupt.rs `a_second_interrupt_exits_and_leaves_only_complete_outputs` signals five
+tests/commands/interrupt.rs `a_second_interrupt_exits_and_leaves_only_complete_outputs` signals five
 renders; the races it guards against are rare (about one run in a hundred before session 20), so
 this script repeats its protocol many times: a render of the tests' tiny scene (256x192, one
 thread, max_depth 1, a preview written after every pass), SIGINT at 0..34 ms after the first

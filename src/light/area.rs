@@ -424,7 +424,7 @@ mod tests {
     /// and by area far from it and on other meshes, and `pdf_li_nee` is the density each sample
     /// reports: the MIS weight of a BSDF-sampled ray that hits the light must use the density the
     /// light sample would have had (returning the area density there instead passes
-    /// tests/pt.rs's comparison of MIS modes, so it is checked here). E[1/pdf] over the samples is
+    /// tests/images/pt.rs's comparison of MIS modes, so it is checked here). E[1/pdf] over the samples is
     /// the solid angle the light subtends, in both regimes: by solid angle exactly (1/pdf is S),
     /// by area within 5 standard errors of the sample mean (1/pdf = A·|cos θ|/d² has a relative
     /// spread of 7.5% over the light at that distance, so the bound is about 0.27% of S; a false

@@ -166,7 +166,7 @@ impl LightLiSample {
     /// to this light sample. Both ends are offset by their error bounds (`spawn_ray_to`): a light
     /// point computed in f32 lies up to its bound off the emitter's plane, and un-offset it lies
     /// behind the emitter half the time, so that a shadow ray arriving at a grazing angle hits the
-    /// emitter itself before its end. Far from the origin (the room of tests/extremes.rs
+    /// emitter itself before its end. Far from the origin (the room of tests/images/extremes.rs
     /// translated by 1e5: bound ≈ 0.04 units) that darkened walls that see the light at grazing
     /// angles by about 1%.
     #[inline]

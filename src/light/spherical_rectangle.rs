@@ -174,7 +174,7 @@ impl<'a> SphericalRectangle<'a> {
         // Eq. 13–16: the heights at the arc's ends, h uniform between them, back to y.
         // Square roots of sums of squares rather than `hypot`, whose overflow-safe libm call cost
         // more than the rest of the sample; the values are lengths in the scene, far from
-        // overflow (tests/extremes.rs bounds the scene's scale).
+        // overflow (tests/images/extremes.rs bounds the scene's scale).
         let dist2 = xu * xu + z0 * z0;
         let dist = dist2.sqrt();
         let h0 = y0 / (dist2 + y0 * y0).sqrt();

@@ -211,7 +211,7 @@ impl Builder<'_> {
     /// Refuses a scene outside the validated scale range [`MIN_EXTENT`, `MAX_EXTENT`]: its
     /// extent (the largest side of the box holding every shape and the camera) and its largest
     /// coordinate. Inside the range every integrator renders the same image at every scale
-    /// (tests/extremes.rs renders the edges); outside it f32 quantities that grow as the square or
+    /// (tests/images/extremes.rs renders the edges); outside it f32 quantities that grow as the square or
     /// cube of a length (the light pdf's distance² / area, the accelerators' intersection
     /// determinants) overflow or flush to zero and the image silently darkens (measured at 5.6e13
     /// units: 0.5× with either accelerator; at 5.6e-13 with Embree: 0.5×).

@@ -63,7 +63,7 @@ pub const PLEXUS_VERSION: &str = env!("CARGO_PKG_VERSION");
 /// what its state holds. A state (checkpoint or shard) is resumed or merged only by a plexus of
 /// the same revision, since another revision would continue the render with other numbers and
 /// blend two estimators. Bump it with every change that moves an image rendered with the same
-/// scene, seed, settings and threads; `tests/golden.rs` renders each integrator once and fails
+/// scene, seed, settings and threads; `tests/images/golden.rs` renders each integrator once and fails
 /// until it is bumped (its table records the images of this revision).
 pub const SAMPLING_REVISION: u32 = 2;
 /// The largest state file read: far beyond any film the memory checks allow, small enough that a

@@ -1,4 +1,4 @@
-//! Cross-estimator agreement by region (tests/bdpt.rs explains the bound): an integrator renders
+//! Cross-estimator agreement by region (tests/images/bdpt.rs explains the bound): an integrator renders
 //! K independent images; for each of the GRID×GRID regions and the whole image, the luminance
 //! means over the renders give the estimator's mean and its variance measured from the renders
 //! themselves. Two integrators agree when Welch's |z| < `Z_CRITICAL` everywhere.
@@ -387,7 +387,7 @@ impl SharesChi2 {
 /// 2 C_rs²/(K − 1) (Wishart), so E[1/(ŵ_r ŵ_s)] ≈ g₁_r g₁_s (1 + 2 B_rs²/(K − 1)), B = the method's
 /// share of A. Then E[T] = Σ_r A_rr g₁_r and E[T²] = Σ_rs (A_rr A_ss + 2 A_rs²) G_rs (Isserlis),
 /// G_rr = g₂_r, G_rs the product above; Box's a and ν are matched to these. Σ is replaced by its
-/// estimate (the bound is then a plug-in; tests/emlt_part2.rs's simulation measures the resulting
+/// estimate (the bound is then a plug-in; tests/chains/emlt_part2.rs's simulation measures the resulting
 /// false-failure rate). The share's ratio bias is O(CV²) of a render's image mean, as for the
 /// z test.
 pub fn shares_chi2(method: &[Vec<f64>], reference: &[f64], reference_variance: &[f64]) -> SharesChi2 {

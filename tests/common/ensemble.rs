@@ -1,5 +1,5 @@
-//! emlt's agreement renders and share test, shared by tests/emlt.rs (part 1) and
-//! tests/emlt_part2.rs (part 2): tests/emlt.rs's module docs say why the renders are small
+//! emlt's agreement renders and share test, shared by tests/chains/emlt.rs (part 1) and
+//! tests/chains/emlt_part2.rs (part 2): tests/chains/emlt.rs's module docs say why the renders are small
 //! (8×8) with many chains, and why the power is checked on the 2×2 quadrants.
 
 use super::agreement::{

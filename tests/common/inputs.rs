@@ -1,5 +1,5 @@
 //! Hand-made input files for the tests that feed plexus what a hostile or careless user could
-//! (tests/trust.rs, tests/fuzz/, tests/cli.rs): a small Mitsuba scene, `.serialized` meshes with
+//! (tests/commands/trust.rs, tests/commands/fuzz/, tests/commands/cli.rs): a small Mitsuba scene, `.serialized` meshes with
 //! any counts, FIFOs.
 
 use std::io::Write;

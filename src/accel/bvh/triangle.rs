@@ -671,7 +671,7 @@ mod tests {
     }
 
     /// A real hit inside f32's error bound δt is kept, a re-hit of the surface a ray was spawned from
-    /// is not. The first ray is the one `tests/pt.rs`'s Embree/BVH comparison caught on the Cornell
+    /// is not. The first ray is the one `tests/images/pt.rs`'s Embree/BVH comparison caught on the Cornell
     /// box: a grazing hit on the 556 × 549 red wall at t = 0.1766, where δt = 0.20. Rejecting every
     /// t ≤ δt (the code before) missed it and the path escaped through the wall.
     #[test]

@@ -7,7 +7,7 @@
 //! have recorded (throughputs are not rebuilt). `technique_weight` then applies the MIS recurrence
 //! from that technique's own point of view. Summing it over the techniques that can produce a path
 //! gives 1 exactly when the generators' bookkeeping and the recurrence agree — the test of
-//! `tests/bdpt.rs` — and RJMLT can use the same functions on a path it has inverted.
+//! `tests/images/bdpt.rs` — and RJMLT can use the same functions on a path it has inverted.
 
 use crate::geometry::Frame;
 use crate::material::TransportMode;

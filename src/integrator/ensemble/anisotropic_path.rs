@@ -167,7 +167,7 @@ pub struct AnisotropicMove {
 pub struct AnisotropicPath {
     /// Tests only, a deliberately wrong variant: T(ȳ → x̄) fits its kernels with x̄'s similarity
     /// weights (x̄'s Σ, recentred at ȳ) instead of refitting at ȳ; the toy test's wrong variant
-    /// (`toy_anisotropic`), here for the scene tests (tests/emlt_part2.rs).
+    /// (`toy_anisotropic`), here for the scene tests (tests/chains/emlt_part2.rs).
     pub reverse_reuses_forward_fit: bool,
 }
 

@@ -52,9 +52,9 @@ pub struct EmltSettings {
     pub fallback_concentration: f64,
     /// Which guided perturbations run, for the paper's ablation (Table 1): "linear" (the default:
     /// linear lens, caustic and multi-chain, part 1 of the method, whose agreement with the path
-    /// tracer tests/emlt.rs shows on the Cornell, glossy and glass boxes), "all" (the linear ones,
+    /// tracer tests/chains/emlt.rs shows on the Cornell, glossy and glass boxes), "all" (the linear ones,
     /// the anisotropic path and the environment perturbation: agreement shown on the three boxes
-    /// and the environment scene, tests/emlt_part2.rs) or "anisotropic" (the
+    /// and the environment scene, tests/chains/emlt_part2.rs) or "anisotropic" (the
     /// anisotropic path perturbation only); the bidirectional mutation always.
     pub perturbations: Perturbations,
 }

@@ -55,7 +55,7 @@
 //!   R(x̄* | x̄) / R(x̄ | x̄*), as the chain (`strategy` docs) computes it.
 //!
 //! Dropping the G terms (the deliberately wrong variant `omit_geometry`, T = k/|n·ω*|) leaves the
-//! chain's stationary density off by G(x_i, x_{i+1}), which tests/portal.rs's portal-planes test
+//! chain's stationary density off by G(x_i, x_{i+1}), which tests/chains/portal.rs's portal-planes test
 //! rejects.
 
 // `!(x > 0.0)` is deliberate throughout: it rejects NaN densities along with zero and negative ones.

@@ -1,7 +1,7 @@
 //! The statistics of the Markov chain integrators (`pssmlt`, `mmlt`, `rjmlt`), typed: every worker
 //! slot accumulates one [`MltStats`], the slots are combined by [`MltStats::merge`] in slot order,
 //! [`MltStats::finish`] derives the rates, and serde writes the result as the render's
-//! `integrator_stats` JSON (tests/mlt.rs, scripts/bench-mlt.sh and scripts/fig4_table.py read it by
+//! `integrator_stats` JSON (tests/chains/mlt.rs, scripts/bench-mlt.sh and scripts/fig4_table.py read it by
 //! these field names). A new statistic is one field here, plus its line in `merge`.
 
 use serde::{Deserialize, Serialize, Serializer};

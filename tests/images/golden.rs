@@ -3,7 +3,7 @@
 //! refuse another one, because a render continued with other random numbers would blend two
 //! estimators with exit 0. That gate works only if the revision moves whenever the numbers do:
 //! this test fails on any change to an image until the revision is bumped and the table below is
-//! regenerated (`GOLDEN_PRINT=1 cargo test --release --test golden -- --nocapture` prints it).
+//! regenerated (`GOLDEN_PRINT=1 cargo test --release --test images golden:: -- --nocapture` prints it).
 //!
 //! The renders use the in-house BVH (`accel = "bvh"`), whose arithmetic is plexus's own, not
 //! Embree's (whose kernels differ between CPU generations), on one thread. The BVH's triangle test

@@ -40,7 +40,7 @@
 //! png_colours_are_read_unassociated_from_alpha pins the reading itself.
 //! Measured by this test (same seeds): living room 0.31, veach-ajar 0.58, torus 0.21, staircase
 //! 0.32, breakfast room 0.30, Cornell box 0.32, veach lamp 0.53; half the depth on the Cornell box
-//! 1.84. Test time (`cargo test --release --test crosscheck`): all 9 tests 19 s wall
+//! 1.84. Test time (`cargo test --release --test images crosscheck::`): all 9 tests 19 s wall
 //! on an idle machine (session 17); under a load average of ~20 on 2 cores, 7 tests took 235 s and
 //! the staircase and breakfast room 78 s more.
 
@@ -49,8 +49,7 @@ use std::path::Path;
 use plexus::metrics::converge::camera_at_resolution;
 use plexus::scene::load_scene;
 
-mod common;
-use common::agreement::{mean_and_variance_of_mean, render_regions};
+use crate::common::agreement::{mean_and_variance_of_mean, render_regions};
 
 const RENDERS: u64 = 8;
 const SPP: u64 = 64;

@@ -1,7 +1,7 @@
 //! Interrupt, checkpoint and resume (issue 19) and shards and their merge (issue 21), on the
 //! library: the driver's deterministic stop (`RunControl::stop_at_pass`, the hook a signal's flag
 //! stands for), every state going through the file codec (`StateFile` bytes) before it is used.
-//! The binary's side (a real SIGINT, refusals, temporary files) is in tests/interrupt.rs.
+//! The binary's side (a real SIGINT, refusals, temporary files) is in tests/commands/interrupt.rs.
 
 use std::path::Path;
 
@@ -156,7 +156,7 @@ fn ulps_apart(a: &Image, b: &Image) -> (u32, usize) {
 ///
 /// Measured: for pt, BDPT, MMLT and RJMLT and N = 1, 2, 3 the merged images and even the film sums
 /// were identical to the unsharded ones (f32 contributions of these scenes sum exactly in f64 in
-/// any order, as tests/mlt.rs found for MMLT's threads), so the bound holds with room. Refusals of
+/// any order, as tests/chains/mlt.rs found for MMLT's threads), so the bound holds with room. Refusals of
 /// shards that do not belong together are the next test.
 #[test]
 fn merged_shards_equal_the_unsharded_render_within_rounding() {

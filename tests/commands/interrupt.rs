@@ -1,13 +1,11 @@
 //! The binary's side of interrupts, checkpoints, resume and merge (issues 19 and 21): a real
 //! SIGINT, two in a row while previews are written, the one-line refusals (exit 2), and a merge
-//! through the command line. The library's properties are in tests/state.rs.
-
-mod common;
+//! through the command line. The library's properties are in tests/commands/state.rs.
 
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 
-use common::binary::{plexus, stderr, temp_dir, tiny_scene};
+use crate::common::binary::{plexus, stderr, temp_dir, tiny_scene};
 use plexus::state::StateFile;
 
 fn write(dir: &Path, name: &str, text: &str) -> String {
@@ -162,7 +160,7 @@ fn a_second_interrupt_exits_and_leaves_only_complete_outputs() {
 fn signals_during_a_write(signals: u32) -> (Option<i32>, String, String, Vec<String>, Option<String>) {
     let tmp = temp_dir(&format!("signals{signals}"));
     let out = Command::new(std::env::current_exe().expect("test binary"))
-        .args(["--exact", "signals_during_a_write_child", "--ignored", "--nocapture", "--test-threads", "1"])
+        .args(["--exact", "interrupt::signals_during_a_write_child", "--ignored", "--nocapture", "--test-threads", "1"])
         .env("PLEXUS_TEST_SIGNAL_CHILD", format!("{signals}"))
         .env("PLEXUS_TEST_SIGNAL_DIR", tmp.path())
         .output()
@@ -278,7 +276,7 @@ fn resume_and_merge_refuse_what_does_not_belong_and_merge_matches_the_render() {
     let o = plexus(&["merge", "s1.pxstate", "s0.pxstate", "--out", "merged.exr"], dir);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let read = |n: &str| plexus::film::exr_io::read_exr(&dir.join(n)).expect("read exr").pixels;
-    // Within one f32 rounding step (tests/state.rs states why); measured: identical.
+    // Within one f32 rounding step (tests/commands/state.rs states why); measured: identical.
     for (a, b) in read("merged.exr").iter().zip(read("whole.exr")) {
         for (x, y) in a.to_array().into_iter().zip(b.to_array()) {
             assert!(x.to_bits().abs_diff(y.to_bits()) <= 1, "merged {x} against the whole render's {y}");

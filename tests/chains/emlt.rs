@@ -26,9 +26,8 @@
 //! The quadrants that hold the light carry the references' noise estimate inflated by the light's
 //! edges (2–3× the chains' standard error), which only makes their test conservative.
 
-mod common;
-use common::ensemble::{emlt_agrees_with_reference, emlt_renders, emlt_with, share_test, SIZE};
-use common::scenes::{reference, scene};
+use crate::common::ensemble::{emlt_agrees_with_reference, emlt_renders, emlt_with, share_test, SIZE};
+use crate::common::scenes::{reference, scene};
 
 use plexus::film::Image;
 use plexus::integrator::{create, Budget, NoProgress, RenderJob};

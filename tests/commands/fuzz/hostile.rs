@@ -4,8 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
-use super::common::inputs::{mitsuba_scene, mkfifo, serialized_triangles};
 use super::*;
+use crate::common::inputs::{mitsuba_scene, mkfifo, serialized_triangles};
 
 /// The shared Mitsuba scene (`common::inputs::mitsuba_scene`) with `extra` before `</scene>`.
 pub(crate) fn mitsuba(extra: &str) -> String {

@@ -6,8 +6,7 @@
 use std::path::Path;
 use std::process::Output;
 
-mod common;
-use common::binary::{plexus, stderr, temp_dir, tiny_scene};
+use crate::common::binary::{plexus, stderr, temp_dir, tiny_scene};
 
 /// Writes `text` as `name` in `dir` and returns its path as a string.
 fn write(dir: &Path, name: &str, text: &str) -> String {

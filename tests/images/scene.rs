@@ -489,7 +489,7 @@ fn environment_errors_and_constant_environment() {
 /// every run against the page of 15:43: "invalid type: map" at the texture example its schema
 /// does not know), and cargo did not rebuild the test when only the page changed; now it does.
 fn doc_blocks() -> Vec<String> {
-    let doc = include_str!("../docs/scene-format.md");
+    let doc = include_str!("../../docs/scene-format.md");
     let mut blocks = Vec::new();
     let mut current: Option<String> = None;
     for line in doc.lines() {

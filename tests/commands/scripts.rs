@@ -19,8 +19,7 @@
 //!
 //! `every_script_has_a_smoke_check` fails when a script is added to scripts/ without one.
 
-mod common;
-use common::binary::temp_dir;
+use crate::common::binary::temp_dir;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -105,7 +104,7 @@ fn every_script_has_a_smoke_check() {
     assert!(
         unchecked.is_empty() && missing.is_empty(),
         "scripts without a smoke check: {unchecked:?}; checks of scripts that are gone: {missing:?} \
-         (add a check to tests/scripts.rs, or move a one-off study to docs/lab/scripts/)"
+         (add a check to tests/commands/scripts.rs, or move a one-off study to docs/lab/scripts/)"
     );
 }
 
@@ -319,10 +318,11 @@ fn fuzz_sh_runs_the_harness_and_reports_kept_failures() {
     };
     assert_ok("scripts/fuzz.sh without failures", &fuzz(&keep));
     let call = std::fs::read_to_string(&log).expect("cargo was called");
-    assert_eq!(call.trim(), "test --release --test fuzz replay -- --ignored --nocapture");
-    let harness = std::fs::read_to_string(root().join("tests/fuzz/main.rs")).expect("tests/fuzz/main.rs");
+    assert_eq!(call.trim(), "test --release --test commands fuzz::replay -- --ignored --nocapture");
+    let harness =
+        std::fs::read_to_string(root().join("tests/commands/fuzz/mod.rs")).expect("tests/commands/fuzz/mod.rs");
     for needle in ["fn replay", "PLEXUS_FUZZ_SEED", "PLEXUS_FUZZ_SECONDS", "PLEXUS_FUZZ_KEEP"] {
-        assert!(harness.contains(needle), "tests/fuzz/main.rs has no {needle}, which fuzz.sh relies on");
+        assert!(harness.contains(needle), "tests/commands/fuzz/mod.rs has no {needle}, which fuzz.sh relies on");
     }
     std::fs::create_dir_all(&keep).expect("mkdir keep");
     std::fs::write(keep.join("fail-1.input"), "x").expect("write");

@@ -11,9 +11,8 @@ use plexus::metrics::converge::camera_at_resolution;
 use plexus::scene::import::{import_mitsuba, ImportOptions};
 use plexus::scene::load_scene;
 
-mod common;
-use common::agreement::render_regions;
-use common::binary::{plexus, stderr, temp_dir};
+use crate::common::agreement::render_regions;
+use crate::common::binary::{plexus, stderr, temp_dir};
 
 /// (name, XML file, leave out missing meshes): the list scripts/import-scenes.sh imports.
 const SCENES: &[(&str, &str, bool)] = &[
@@ -68,7 +67,7 @@ fn import_and_load(name: &str) {
 /// aspect ratio), a few samples (mutations) per pixel: every region mean must be finite and the
 /// image not black. A smoke check that each integrator runs on the scene's features (textures,
 /// masks, two-sided and rough dielectric materials, environment maps, emitting meshes); agreement is
-/// tests/crosscheck.rs's business.
+/// tests/images/crosscheck.rs's business.
 fn smoke_render(name: &str, scene: &mut plexus::scene::Scene) {
     let (w, h) = (scene.camera.width, scene.camera.height);
     let g = (1..=w.min(h)).rev().find(|d| w % d == 0 && h % d == 0).unwrap_or(1);

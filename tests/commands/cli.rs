@@ -5,9 +5,8 @@
 use std::path::Path;
 use std::process::Output;
 
-mod common;
-use common::binary::{plexus, stderr, temp_dir};
-use common::inputs::mitsuba_scene;
+use crate::common::binary::{plexus, stderr, temp_dir};
+use crate::common::inputs::mitsuba_scene;
 
 /// A tiny valid scene: an 8×6 camera looking at a diffuse floor under a one-sided area light.
 /// `{MATERIAL}`, `{EMISSION}`, `{RESOLUTION}` and `{EXTRA}` are substituted by the tests.

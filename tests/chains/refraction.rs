@@ -16,7 +16,7 @@
 //!   2×2 quadrants (a 10% error of any quadrant holding a quarter of the average share must reach
 //!   |z| = 5), |z| < 5 on the 4×4 regions, and the χ² of the 4×4 regions' shares (p ≥ 1e-4;
 //!   `shares_chi2` derives its bound). The quadrants carry the power because a path-space chain's
-//!   share noise is its sticky states' (tests/emlt.rs's module docs), and the χ² is the part that
+//!   share noise is its sticky states' (tests/chains/emlt.rs's module docs), and the χ² is the part that
 //!   sees a bias spread over many regions, the signature of a missing h (the light leans towards
 //!   the exit angles the wrong density favours). pmlt runs 256 long chains (4,096 mutations each
 //!   at 1024 per pixel on 32×32) so that the chains' stationary distribution, not their unbiased
@@ -38,14 +38,13 @@
 //! its bidirectional share), 7e-12 (all); on the prism 3e-11 (bidirectional), 1e-86 (all); emlt
 //! 4e-10 and 2e-10 on the slab, 7e-11 on the prism; with h every χ² p ≥ 0.07 (docs/mlt.md, "Light-
 //! side specular steps", has the table). The primary-sample-space chains have no such density;
-//! their wrong variant is tests/mlt.rs's small-step drift (+0.02σ per Gaussian small step, made
+//! their wrong variant is tests/chains/mlt.rs's small-step drift (+0.02σ per Gaussian small step, made
 //! temporarily): rejected on the slab and the glass box by all three, on the prism by MMLT and RJMLT
 //! (PSSMLT's 128 mutations per pixel there do not see it: χ² p = 0.15).
 
-mod common;
-use common::agreement::{assert_agree, estimate};
-use common::ensemble::{chain_renders, print_strategies, share_test, ShareTest};
-use common::scenes::{reference, scene};
+use crate::common::agreement::{assert_agree, estimate};
+use crate::common::ensemble::{chain_renders, print_strategies, share_test, ShareTest};
+use crate::common::scenes::{reference, scene};
 
 use plexus::integrator::ensemble::render::Emlt;
 use plexus::integrator::path_space::Pmlt;
@@ -54,7 +53,7 @@ use plexus::integrator::{create, Integrator};
 /// The rough slab.
 const ROUGH: &str = "glass-lamp-rough";
 
-/// Image side of the renders (4×4 regions of 8×8 pixels); emlt renders 8×8 as tests/emlt.rs does
+/// Image side of the renders (4×4 regions of 8×8 pixels); emlt renders 8×8 as tests/chains/emlt.rs does
 /// (a region's share depends on the mutations per render, not its pixels).
 const SIZE: u32 = 32;
 const EMLT_SIZE: u32 = 8;
@@ -165,7 +164,7 @@ const PMLT_ALL: Chain = Chain {
 const PMLT_ALL_512: Chain =
     Chain { label: "all strategies, 512 chains", params: "max_depth = 8\nbootstrap = 20000\nchains = 512", ..PMLT_ALL };
 
-/// emlt's configurations, tests/emlt.rs's harness (|X| = |Y| = 512, α = 0.5 throughout, 8×8,
+/// emlt's configurations, tests/chains/emlt.rs's harness (|X| = |Y| = 512, α = 0.5 throughout, 8×8,
 /// 4096 mutations per pixel: 256 per chain): the linear caustic taking 6/7 of the selections where
 /// suitable, and all strategies.
 const EMLT_CAUSTIC: Chain = Chain {
@@ -182,7 +181,7 @@ const EMLT_ALL: Chain = Chain {
     ..EMLT_CAUSTIC
 };
 
-/// The primary-sample-space methods at tests/mlt.rs's settings (8 chains, 10,000 bootstrap paths
+/// The primary-sample-space methods at tests/chains/mlt.rs's settings (8 chains, 10,000 bootstrap paths
 /// per depth).
 const PSSMLT: Chain = Chain {
     label: "defaults",
@@ -247,7 +246,7 @@ fn emlt_agrees_on_the_refraction_scenes() {
     ]);
 }
 
-/// PSSMLT, MMLT and RJMLT (tests/mlt.rs's settings) on `scene` with its mutations per pixel, the
+/// PSSMLT, MMLT and RJMLT (tests/chains/mlt.rs's settings) on `scene` with its mutations per pixel, the
 /// runs' seed offsets from `seed_offset`.
 fn primary_sample_space_chains_agree(scene: &'static str, mpp: [u64; 3], seed_offset: u64) {
     let runs: Vec<Run> = [PSSMLT, MMLT, RJMLT]
@@ -268,7 +267,7 @@ fn pssmlt_mmlt_and_rjmlt_agree_on_the_glass_prism() {
     primary_sample_space_chains_agree(PRISM, [128, 1024, 1536], 4724);
 }
 
-/// The Cornell glass box, which tests/mlt.rs does not render (its sphere: Π h = 1, but the
+/// The Cornell glass box, which tests/chains/mlt.rs does not render (its sphere: Π h = 1, but the
 /// primary-sample-space chains had run on no dielectric at all).
 #[test]
 fn pssmlt_mmlt_and_rjmlt_agree_on_cornell_glass() {

@@ -4,9 +4,8 @@
 
 use std::path::Path;
 
-mod common;
-use common::binary::{plexus, plexus_within, stderr, temp_dir, tiny_scene};
-use common::inputs::{mitsuba_scene, mkfifo, serialized, serialized_triangles, SerializedMesh};
+use crate::common::binary::{plexus, plexus_within, stderr, temp_dir, tiny_scene};
+use crate::common::inputs::{mitsuba_scene, mkfifo, serialized, serialized_triangles, SerializedMesh};
 
 /// The shared Mitsuba scene with sensor id `sensor_id` and `tail` before `</scene>`.
 fn mitsuba(sensor_id: &str, tail: &str) -> String {

@@ -30,11 +30,10 @@
 
 use std::sync::OnceLock;
 
-mod common;
-use common::agreement::{
+use crate::common::agreement::{
     assert_agree, assert_brightness_agrees, assert_shares_agree, estimate, render_regions, RENDERS,
 };
-use common::scenes::scene;
+use crate::common::scenes::scene;
 
 use plexus::film::Image;
 use plexus::integrator::{create, Budget, NoProgress, RenderJob};

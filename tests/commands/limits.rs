@@ -11,8 +11,7 @@
 
 use std::path::Path;
 
-mod common;
-use common::binary::{plexus, temp_dir, tiny_scene};
+use crate::common::binary::{plexus, temp_dir, tiny_scene};
 
 /// Writes the scene at `resolution` with `extra` into `dir` as `scene.toml`.
 fn write_scene(dir: &Path, resolution: &str, extra: &str) {

@@ -18,13 +18,12 @@
 
 use std::path::Path;
 
-mod common;
-use common::agreement::{
+use crate::common::agreement::{
     assert_shares_agree, assert_shares_agree_with_image, image_share_agreement, region_means, region_means_on, GRID,
     Z_CRITICAL,
 };
-use common::ensemble::chain_renders;
-use common::scenes::{reference, scene};
+use crate::common::ensemble::chain_renders;
+use crate::common::scenes::{reference, scene};
 
 use plexus::film::exr_io::read_exr;
 use plexus::film::Image;

@@ -18,8 +18,7 @@
 
 use std::path::Path;
 
-mod common;
-use common::agreement::{assert_agree, estimate};
+use crate::common::agreement::{assert_agree, estimate};
 
 use plexus::camera::Camera;
 use plexus::film::Image;

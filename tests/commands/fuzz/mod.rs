@@ -39,7 +39,7 @@
 //! opened for reading) trips it.
 //!
 //! The mutator is a seeded SplitMix64 (no new dependency): a failure is reproduced by its seed,
-//! `PLEXUS_FUZZ_SEED=S PLEXUS_FUZZ_CASES=1 cargo test --release --test fuzz replay -- --ignored`.
+//! `PLEXUS_FUZZ_SEED=S PLEXUS_FUZZ_CASES=1 cargo test --release --test commands fuzz::replay -- --ignored`.
 //! `scripts/fuzz.sh SECONDS` runs the same harness from a random seed for a given time.
 //! `PLEXUS_FUZZ_BINARY=PATH` runs the binary cases against another build of plexus (to check that
 //! a kind of case catches the defect an older build has).
@@ -53,12 +53,10 @@ use std::time::{Duration, Instant};
 
 use toml::Value;
 
-#[path = "../common/mod.rs"]
-mod common;
 mod hostile;
 mod mutate;
 
-use common::binary::{run_within, temp_dir, tiny_scene};
+use crate::common::binary::{run_within, temp_dir, tiny_scene};
 use hostile::{file_type_case, import_case, make_states, nesting_case, state_case};
 use mutate::{corrupt, mutated_scene};
 

@@ -4,7 +4,7 @@
 //! switched on.
 //!
 //! # Agreement
-//! As for the primary-sample-space methods (tests/mlt.rs explains it; tests/common/agreement.rs
+//! As for the primary-sample-space methods (tests/chains/mlt.rs explains it; tests/common/agreement.rs
 //! states the bounds): with expected-value splatting the image mean is b, so the **region shares**
 //! (4×4 regions, region mean ÷ the render's image mean) of 16 renders test the chain, by Welch's z
 //! with |z| < 5 and a power check (a 10% error of any region's share holding at least a quarter of
@@ -41,13 +41,12 @@
 //! showed the lens perturbation's T with the connection's G failing at |z| = 54.3 (glossy) and
 //! 67.3 (glass). The multi-chain perturbation's wrong variant is its χ² test's (perturb_tests.rs).
 
-mod common;
-use common::agreement::{
+use crate::common::agreement::{
     assert_brightness_agrees, assert_shares_agree_with_image, image_share_agreement, region_means, render_regions,
     GRID, RENDERS, Z_CRITICAL,
 };
-use common::binary::{plexus, stderr, temp_dir, tiny_scene};
-use common::scenes::{reference, scene};
+use crate::common::binary::{plexus, stderr, temp_dir, tiny_scene};
+use crate::common::scenes::{reference, scene};
 
 use plexus::film::Image;
 use plexus::integrator::path_space::bidirectional::Bidirectional;

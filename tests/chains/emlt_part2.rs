@@ -4,7 +4,7 @@
 //! strategies run in `emlt` and their images are compared with the path tracer's by region shares.
 //!
 //! # Agreement with all strategies
-//! tests/emlt.rs's harness (its module docs say why): 16 renders of 1024 chains (|X| = |Y| = 512)
+//! tests/chains/emlt.rs's harness (its module docs say why): 16 renders of 1024 chains (|X| = |Y| = 512)
 //! at 8×8 pixels, α = 0.5, compared by region shares with the committed path-traced reference
 //! (its noise estimated from its pixels): the power check (a 10% error of every quadrant holding a
 //! quarter of the average share must reach |z| = 5) and |z| < 5 on the 2×2 quadrants, |z| < 5 on
@@ -25,10 +25,9 @@
 //! passed it in 3 of 5 seed sets). A strategy's correctness does not depend on its selection
 //! weight, so this tests what the default runs.
 
-mod common;
-use common::agreement::{image_shares_chi2_false_failure_rate, GRID};
-use common::ensemble::{emlt_agrees_with_reference_at, emlt_renders, emlt_with, share_test, ShareTest, SIZE};
-use common::scenes::{reference, scene};
+use crate::common::agreement::{image_shares_chi2_false_failure_rate, GRID};
+use crate::common::ensemble::{emlt_agrees_with_reference_at, emlt_renders, emlt_with, share_test, ShareTest, SIZE};
+use crate::common::scenes::{reference, scene};
 
 use plexus::integrator::{create, Budget, NoProgress, RenderJob};
 use plexus::scene::Scene;
@@ -174,7 +173,7 @@ fn all_strategies_agree_on_cornell_glossy() {
 /// sees the room through the sphere, the anisotropic path perturbation's image-plane move retraces
 /// the specular chain to x_a (such proposals are not counted separately). Measured (2026-12-03, load ~14): worst |z| 1.26 (2×2, power
 /// ≥ 6.9) / 1.98 (4×4); accepted: anisotropic_path 7,959 of 36,933, linear lens 114,548 of
-/// 143,174, linear caustic 1,748 of 2,272, linear multi-chain 1,096 of 2,278 (tests/emlt.rs's
+/// 143,174, linear caustic 1,748 of 2,272, linear multi-chain 1,096 of 2,278 (tests/chains/emlt.rs's
 /// glass test asserts those two guided).
 #[test]
 fn all_strategies_agree_on_cornell_glass() {
