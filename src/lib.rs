@@ -3,7 +3,9 @@
 //! See docs/architecture.md for the architecture. Module boundaries: `accel` answers
 //! ray queries (Embree or the in-house BVH), `geometry` holds rays and hits, `sampling` holds every
 //! warp with its pdf and inverse, `scene` parses and builds scenes, `camera`/`material`/`light`
-//! sample and evaluate, `film` accumulates and writes images, `integrator` holds light transport,
+//! sample and evaluate, `film` accumulates and writes images, `job` says what a render is asked to
+//! do and may use (budget, limits, memory, run control) below everything that renders,
+//! `integrator` holds light transport,
 //! `stats` and `metrics` measure, `bench` times the accelerators and the path tracer, `huge_pages`
 //! places large randomly read arrays (textures, the BVH) on transparent huge pages.
 
@@ -16,6 +18,7 @@ mod huge_pages;
 pub mod input_file;
 pub mod integrator;
 pub mod interrupt;
+pub mod job;
 pub mod light;
 pub mod material;
 pub mod metrics;

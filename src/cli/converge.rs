@@ -63,20 +63,20 @@ pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
     let overrides =
         args.set.iter().map(|s| integrator::parse_set(s)).collect::<Result<Vec<_>, _>>().map_err(bad_input)?;
     if let Some(n) = args.threads {
-        integrator::check_threads(n, "--threads").map_err(bad_input)?;
+        plexus::job::check_threads(n, "--threads").map_err(bad_input)?;
     }
     // Every budget within the render limits, and the whole study too: --times 1e30 ran for ever.
     for &t in &args.times {
-        integrator::check_budget(integrator::Budget::Seconds(t), 1, 1, "--times").map_err(bad_input)?;
+        plexus::job::check_budget(plexus::job::Budget::Seconds(t), 1, 1, "--times").map_err(bad_input)?;
     }
     let runs = (args.times.len() as u64).saturating_mul(args.seeds).saturating_mul(args.integrators.len() as u64);
     let study_seconds = args.times.iter().sum::<f64>() * runs as f64;
-    if study_seconds > integrator::MAX_SECONDS {
+    if study_seconds > plexus::job::MAX_SECONDS {
         return Err(bad_input(format!(
             "--times, --seeds and --integrators: {runs} renders of {} s in all is {study_seconds:.0} s, more than the \
              limit of {} s (30 days)",
             args.times.iter().sum::<f64>(),
-            integrator::MAX_SECONDS
+            plexus::job::MAX_SECONDS
         )));
     }
     if !(args.epsilon > 0.0 && args.epsilon.is_finite()) {

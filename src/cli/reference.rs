@@ -10,7 +10,8 @@ use clap::Args;
 
 use plexus::accel::AccelKind;
 use plexus::film::oiio::{check_output_path, write_image, WriteOptions};
-use plexus::integrator::{self, Budget, RenderJob, INTEGRATOR_NAMES};
+use plexus::integrator::{self, INTEGRATOR_NAMES};
+use plexus::job::{Budget, RenderJob};
 use plexus::metrics::converge::{camera_at_resolution, parse_resolution};
 
 use super::bad_input;

@@ -8,7 +8,8 @@ use std::time::Instant;
 use clap::Args;
 
 use plexus::accel::AccelKind;
-use plexus::integrator::{self, Budget, RenderJob, INTEGRATOR_NAMES};
+use plexus::integrator::{self, INTEGRATOR_NAMES};
+use plexus::job::{Budget, RenderJob};
 use plexus::scene::{builtin_cornell_box, LoadedScene};
 use plexus::state::{Session, Shard, StateFile};
 
@@ -89,7 +90,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let overrides =
         args.set.iter().map(|s| integrator::parse_set(s)).collect::<Result<Vec<_>, _>>().map_err(bad_input)?;
     if let Some(n) = args.threads {
-        plexus::integrator::check_threads(n, "--threads").map_err(bad_input)?;
+        plexus::job::check_threads(n, "--threads").map_err(bad_input)?;
     }
     if let Some(s) = args.preview_every {
         if !(s.is_finite() && s > 0.0) {
@@ -188,7 +189,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     };
     plexus::interrupt::install().map_err(|e| anyhow::anyhow!("cannot install the interrupt handler: {e}"))?;
     let session = Session {
-        control: integrator::driver::RunControl {
+        control: plexus::job::RunControl {
             stop: Some(plexus::interrupt::stop_flag()),
             stop_at_pass: args.stop_at_pass,
             checkpoint_every,

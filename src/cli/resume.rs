@@ -9,7 +9,8 @@ use std::time::Instant;
 
 use clap::Args;
 
-use plexus::integrator::{self, Budget, RenderJob};
+use plexus::integrator;
+use plexus::job::{Budget, RenderJob};
 use plexus::scene::builtin_cornell_box;
 use plexus::state::{Session, StateError, StateFile};
 
@@ -122,7 +123,7 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
     };
     plexus::interrupt::install().map_err(|e| anyhow::anyhow!("cannot install the interrupt handler: {e}"))?;
     let session = Session {
-        control: integrator::driver::RunControl {
+        control: plexus::job::RunControl {
             stop: Some(plexus::interrupt::stop_flag()),
             stop_at_pass: args.stop_at_pass,
             checkpoint_every,

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use plexus::film::oiio::{write_image, WriteOptions};
-use plexus::integrator::RenderOutput;
+use plexus::job::RenderOutput;
 use plexus::state::{StateFile, StateHeader};
 
 use super::bad_input;
@@ -136,7 +136,7 @@ pub fn header(
     accel: String,
     integrator: &dyn plexus::integrator::Integrator,
     params: &toml::Table,
-    job: &plexus::integrator::RenderJob,
+    job: &plexus::job::RenderJob,
     size: (u32, u32),
     shard: Option<plexus::state::Shard>,
     outputs: &[PathBuf],

@@ -1,26 +1,18 @@
-//! The memory a render needs, and the memory the process may use: one estimate, computed with
-//! checked arithmetic, so that a scene, film or Markov chain setup that would not fit is refused
-//! with its size instead of aborting on allocation. `plexus info` prints the same
-//! estimate.
+//! Each integrator's estimate of the memory its render needs beyond the scene, for a film of the
+//! given size: the buffers that grow with the budget's dimensions (see `driver`'s render model).
+//! The types, the process's available memory and the check are the job layer's
+//! (`crate::job::memory`); `plexus info` prints the same estimate that `render` checks.
 //!
-//! Its parts:
-//! - **the scene** (`SceneMemory`), measured on the built scene: mesh arrays, the accelerator
-//!   (Embree's own allocations through its memory monitor, or the in-house BVH's nodes and
-//!   triangles), lights (distributions, environment texels) and textures;
-//! - **the render**, the buffers that grow with the budget's dimensions (see `driver`'s render
-//!   model): the film's unnormalised sums (3 × f64 per pixel; MLT stacks one W × H layer per path
-//!   depth), the normalised output image (3 × f32 per pixel), one pass of splat buffers (16 bytes a
-//!   contribution, at least one per pixel sample of the pass), and for MLT the bootstrap's targets
-//!   (one f32 plus one f64 of the discrete distribution per bootstrap path and depth) and the
-//!   chains' sub-chains (path-space MLT: the chains' paths).
-//!
-//! The estimate is a lower bound: it omits scratch state, so a render it refuses certainly would
-//! not have fitted. The scene is already built when the estimate is checked (mesh readers bound
-//! their allocations by the file sizes, `input_file`), so its bytes are part of what the process
-//! holds: see `available_memory`.
+//! Its parts: the film's unnormalised sums (3 × f64 per pixel; MLT stacks one W × H layer per path
+//! depth), the normalised output image (3 × f32 per pixel), one pass of splat buffers (16 bytes a
+//! contribution, at least one per pixel sample of the pass), and for MLT the bootstrap's targets
+//! (one f32 plus one f64 of the discrete distribution per bootstrap path and depth) and the
+//! chains' sub-chains (path-space MLT: the chains' paths). Every product is checked; an overflow
+//! is itself a refusal.
 
 use super::pss::settings::{MltSettings, MltVariant};
 use super::RenderError;
+use crate::job::memory::{add, mul, RenderMemory, SceneMemory};
 
 /// Bytes of one film pixel: the accumulator's three f64 sums.
 const FILM_PIXEL_BYTES: u64 = 3 * 8;
@@ -37,68 +29,8 @@ const BOOTSTRAP_PATH_BYTES: u64 = 4 + 8;
 /// and its current path's contribution, per path vertex (`max_depth + 2` vertices, two subpaths).
 const SUBCHAIN_BYTES_PER_VERTEX: u64 = 2 * 64;
 
-/// Bytes the built scene holds, by part.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-pub struct SceneMemory {
-    pub meshes: u64,
-    /// The triangles' corner copies the scene keeps for shading (`Scene::keep_corners_if_room`),
-    /// made after the accelerator's build: they and `accel_build` are never held at once.
-    pub corners: u64,
-    pub accel: u64,
-    /// Bytes the accelerator held only while it was built, on top of `accel` (`Accel::
-    /// peak_memory_bytes` minus `memory_bytes`): part of the process's peak, freed before rendering.
-    pub accel_build: u64,
-    /// Light distributions and environment texels.
-    pub lights: u64,
-    /// Image textures' texels (each shared image once; `Scene::texture_memory_bytes`).
-    pub textures: u64,
-}
-
-impl SceneMemory {
-    /// The scene's peak: what it holds while rendering, or while its accelerator was built (the
-    /// build's temporaries instead of the corner copies), whichever is more.
-    pub fn total(&self) -> u64 {
-        self.meshes
-            .saturating_add(self.accel)
-            .saturating_add(self.accel_build.max(self.corners))
-            .saturating_add(self.lights)
-            .saturating_add(self.textures)
-    }
-}
-
 /// Bytes of one vertex of a path-space chain's path (`path_space::PathVertex`).
 const PATH_VERTEX_BYTES: u64 = std::mem::size_of::<crate::integrator::path_space::PathVertex>() as u64;
-
-/// The memory of a render: the scene it renders, its film, pass buffers and integrator state.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct RenderMemory {
-    /// The built scene (zero until `with_scene`).
-    pub scene: SceneMemory,
-    /// Film sums (all MLT depth layers) and the output image.
-    pub film: u64,
-    /// One pass of splat buffers.
-    pub pass_buffers: u64,
-    /// MLT only: bootstrap targets and chains.
-    pub chains: u64,
-}
-
-impl RenderMemory {
-    pub fn total(&self) -> u64 {
-        self.scene.total().saturating_add(self.film).saturating_add(self.pass_buffers).saturating_add(self.chains)
-    }
-    /// This estimate with the scene's bytes.
-    pub fn with_scene(self, scene: SceneMemory) -> RenderMemory {
-        RenderMemory { scene, ..self }
-    }
-}
-
-fn too_large(what: &str) -> RenderError {
-    RenderError::Limit(format!("the memory of {what} overflows a 64-bit byte count"))
-}
-
-fn mul(a: u64, b: u64, what: &str) -> Result<u64, RenderError> {
-    a.checked_mul(b).ok_or_else(|| too_large(what))
-}
 
 /// The memory `integrator` (with its `params`, already validated by `create`) needs for a
 /// `width`×`height` film. Every product is checked; an overflow is itself a refusal.
@@ -124,16 +56,16 @@ pub fn render_memory(
         // a proposal (max_depth + 2 vertices each).
         let settings = crate::integrator::path_space::PmltSettings::from_params(params)?;
         let film = mul(pixels, FILM_PIXEL_BYTES, "the film")?;
-        let film = film.checked_add(image).ok_or_else(|| too_large("the film"))?;
+        let film = add(film, image, "the film")?;
         let bootstrap = mul(settings.bootstrap, BOOTSTRAP_PATH_BYTES, "the bootstrap")?;
         let path = mul(settings.max_depth as u64 + 2, PATH_VERTEX_BYTES, "a chain's path")?;
         let chains = mul(mul(settings.chains, 2, "the chains")?, path, "the chains")?;
-        let chains = bootstrap.checked_add(chains).ok_or_else(|| too_large("the chains"))?;
+        let chains = add(bootstrap, chains, "the chains")?;
         return Ok(RenderMemory { scene: SceneMemory::default(), film, pass_buffers, chains });
     }
     let Some(variant) = variant else {
         let film = mul(pixels, FILM_PIXEL_BYTES, "the film")?;
-        let film = film.checked_add(image).ok_or_else(|| too_large("the film"))?;
+        let film = add(film, image, "the film")?;
         return Ok(RenderMemory { scene: SceneMemory::default(), film, pass_buffers, chains: 0 });
     };
     let settings = MltSettings::from_params(variant, params)?;
@@ -143,62 +75,12 @@ pub fn render_memory(
     };
     // MLT's per-depth images are layers of one W × (H·D) film (`driver` docs).
     let film = mul(mul(pixels, depths, "the per-depth film")?, FILM_PIXEL_BYTES, "the per-depth film")?;
-    let film = film.checked_add(image).ok_or_else(|| too_large("the film"))?;
+    let film = add(film, image, "the film")?;
     let bootstrap = mul(mul(settings.bootstrap, depths, "the bootstrap")?, BOOTSTRAP_PATH_BYTES, "the bootstrap")?;
     let subchain = mul(settings.max_depth as u64 + 2, SUBCHAIN_BYTES_PER_VERTEX, "a sub-chain")?;
     let chains = mul(mul(settings.chains, depths, "the chains")?, subchain, "the chains")?;
-    let chains = bootstrap.checked_add(chains).ok_or_else(|| too_large("the chains"))?;
+    let chains = add(bootstrap, chains, "the chains")?;
     Ok(RenderMemory { scene: SceneMemory::default(), film, pass_buffers, chains })
-}
-
-/// The memory this process may use in all, its scene included: the cgroup's `memory.max` when
-/// it is set and finite, else the kernel's `MemAvailable` plus `held` (the bytes the process
-/// already holds for the scene, which `MemAvailable`, read after the scene was built, no longer
-/// counts); the smaller of the two when both are known. `None` when neither can be read (then
-/// nothing is refused).
-pub fn available_memory(held: u64) -> Option<u64> {
-    let cgroup = std::fs::read_to_string("/sys/fs/cgroup/memory.max").ok().and_then(|s| s.trim().parse::<u64>().ok());
-    let meminfo = std::fs::read_to_string("/proc/meminfo").ok().and_then(|text| {
-        text.lines()
-            .find_map(|l| l.strip_prefix("MemAvailable:"))
-            .and_then(|rest| rest.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
-            .and_then(|kib| kib.checked_mul(1024))
-            .map(|bytes| bytes.saturating_add(held))
-    });
-    match (cgroup, meminfo) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        (a, b) => a.or(b),
-    }
-}
-
-/// Bytes as GiB for messages.
-pub fn gib(bytes: u64) -> f64 {
-    bytes as f64 / (1u64 << 30) as f64
-}
-
-/// Refuses a render whose estimate exceeds `available` bytes, naming the estimate's parts.
-pub fn check_fits(memory: &RenderMemory, width: u32, height: u32, available: Option<u64>) -> Result<(), RenderError> {
-    let Some(available) = available else { return Ok(()) };
-    if memory.total() > available {
-        return Err(RenderError::Limit(format!(
-            "a {width}x{height} render needs at least {:.2} GiB (scene {:.2}: meshes {:.2} and their corners {:.2}, \
-             accelerator {:.2}, lights {:.2}, textures {:.2}; film {:.2}, pass buffers {:.2}, chains {:.2}) but only {:.2} GiB are \
-             available to the process; lower the resolution{}",
-            gib(memory.total()),
-            gib(memory.scene.total()),
-            gib(memory.scene.meshes),
-            gib(memory.scene.corners),
-            gib(memory.scene.accel),
-            gib(memory.scene.lights),
-            gib(memory.scene.textures),
-            gib(memory.film),
-            gib(memory.pass_buffers),
-            gib(memory.chains),
-            gib(available),
-            if memory.chains > 0 { ", max_depth, bootstrap or chains" } else { "" }
-        )));
-    }
-    Ok(())
 }
 
 #[cfg(test)]
@@ -212,18 +94,6 @@ mod tests {
         assert_eq!(m.film, (1u64 << 32) * 36);
         assert_eq!(m.pass_buffers, (1u64 << 32) * 16);
         assert_eq!(m.total(), 208 << 30);
-        assert!(check_fits(&m, 65536, 65536, Some(m.total() - 1)).is_err());
-        assert!(check_fits(&m, 65536, 65536, Some(m.total())).is_ok());
-        assert!(check_fits(&m, 65536, 65536, None).is_ok());
-        // The scene's bytes count too.
-        let scene = SceneMemory { meshes: 1, corners: 0, accel: 2, accel_build: 0, lights: 3, textures: 4 };
-        let with = m.with_scene(scene);
-        assert_eq!(with.total(), m.total() + 10);
-        assert!(check_fits(&with, 65536, 65536, Some(m.total())).is_err());
-        // The corner copies are made once the build's temporaries are freed: the larger counts.
-        let built = SceneMemory { meshes: 10, corners: 5, accel: 20, accel_build: 8, lights: 1, textures: 2 };
-        assert_eq!(built.total(), 10 + 20 + 8 + 1 + 2);
-        assert_eq!(SceneMemory { corners: 9, ..built }.total(), 10 + 20 + 9 + 1 + 2);
     }
 
     #[test]
