@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use plexus::accel::AccelKind;
-use plexus::integrator::memory::render_memory;
+use plexus::integrator::registry::render_memory;
 use plexus::job::memory;
 use plexus::scene::scene_info;
 

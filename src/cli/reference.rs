@@ -75,18 +75,11 @@ pub fn run_reference(args: &ReferenceArgs) -> anyhow::Result<()> {
     let render = &loaded.render;
     let base = if args.integrator == render.integrator { render.integrator_params.clone() } else { toml::Table::new() };
     let params = integrator::merge_params(&base, &overrides);
-    let integ = integrator::create(&args.integrator, &params)?;
+    let row = integrator::registry::lookup(&args.integrator)?;
+    let integ = (row.create)(&params)?;
     let camera = &loaded.scene.camera;
     let budget_option = if args.spp.is_some() { "--spp" } else { "--time" };
-    super::check_render_limits(
-        &loaded.scene,
-        &args.integrator,
-        &params,
-        camera.width,
-        camera.height,
-        budget,
-        budget_option,
-    )?;
+    super::check_render_limits(&loaded.scene, row, &params, camera.width, camera.height, budget, budget_option)?;
     let load_time = load_start.elapsed().as_secs_f64();
 
     let job = RenderJob { budget, seed: args.seed, threads };

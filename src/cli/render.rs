@@ -8,7 +8,7 @@ use std::time::Instant;
 use clap::Args;
 
 use plexus::accel::AccelKind;
-use plexus::integrator::{self, INTEGRATOR_NAMES};
+use plexus::integrator::{self, registry, INTEGRATOR_NAMES};
 use plexus::job::{Budget, RenderJob};
 use plexus::scene::{builtin_cornell_box, LoadedScene};
 use plexus::state::{Session, Shard, StateFile};
@@ -104,7 +104,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         None => (builtin_cornell_box(args.accel)?, Vec::new()),
     };
     let plan = resolve(&args, &loaded, &overrides)?;
-    let integrator = integrator::create(&plan.integrator, &plan.params)?;
+    let row = registry::lookup(&plan.integrator)?;
+    let integrator = (row.create)(&plan.params)?;
     let camera = &loaded.scene.camera;
     let budget_option = match (args.spp, args.time, plan.budget) {
         (Some(_), _, _) => "--spp",
@@ -114,7 +115,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     };
     super::check_render_limits(
         &loaded.scene,
-        &plan.integrator,
+        row,
         &plan.params,
         camera.width,
         camera.height,
@@ -159,8 +160,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let camera = &loaded.scene.camera;
     check_outputs(&images, camera.width as usize, camera.height as usize)?;
     super::outputs::check_state_paths(&state_paths)?;
-    if !integrator.supports_sessions()
-        && (!state_paths.is_empty() || args.shard.is_some() || checkpoint_every.is_some())
+    let can = row.capabilities;
+    if (!can.checkpoint && (!state_paths.is_empty() || checkpoint_every.is_some()))
+        || (!can.shard && args.shard.is_some())
     {
         return Err(bad_input(integrator.no_state().to_string()));
     }
@@ -207,7 +209,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     )
     .with_previews(args.preview_every.map(|every_seconds| Previews { every_seconds, outputs: images.clone() }));
     let cpu_start = plexus::bench::timing::process_cpu_time();
-    let rendered = if integrator.supports_sessions() {
+    // An integrator that can checkpoint renders under the session, so an interrupt saves a state.
+    let rendered = if can.checkpoint {
         integrator.render_session(scene, &job, &progress, &session)
     } else {
         // No state to save: a plain render, its state record only describing a complete run.

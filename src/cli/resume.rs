@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use clap::Args;
 
-use plexus::integrator;
+use plexus::integrator::registry;
 use plexus::job::{Budget, RenderJob};
 use plexus::scene::builtin_cornell_box;
 use plexus::state::{Session, StateError, StateFile};
@@ -60,7 +60,11 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
     }
     let params: toml::Table =
         toml::from_str(&h.params).map_err(|e| bad_input(format!("{}: {e}", args.state.display())))?;
-    let integrator = integrator::create(&h.integrator, &params)?;
+    let row = registry::lookup(&h.integrator)?;
+    let integrator = (row.create)(&params)?;
+    if !row.capabilities.resume {
+        return Err(bad_input(integrator.no_state().to_string()));
+    }
     if integrator.settings_json() != serde_json::from_str::<serde_json::Value>(&h.settings).unwrap_or_default() {
         return Err(bad_input(StateError::Mismatch(format!(
             "{}: the {} settings it was rendered with ({}) are not what this plexus makes of them ({})",
@@ -94,7 +98,7 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
         (None, Some(_)) => "--time",
         (None, None) => "the state's budget",
     };
-    super::check_render_limits(&loaded.scene, &h.integrator, &params, camera.width, camera.height, budget, option)?;
+    super::check_render_limits(&loaded.scene, row, &params, camera.width, camera.height, budget, option)?;
     let checkpoint_every = match args.checkpoint_every {
         Some(s) => {
             Some(std::time::Duration::try_from_secs_f64(s).ok().filter(|d| !d.is_zero()).ok_or_else(|| {

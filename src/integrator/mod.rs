@@ -10,6 +10,7 @@ pub mod memory;
 pub mod path_space;
 pub mod pss;
 pub mod pt;
+pub mod registry;
 
 use thiserror::Error;
 
@@ -32,8 +33,9 @@ pub enum RenderError {
     ThreadPool(String),
     #[error("a {width}×{height} film has more than 2^32 pixels, more than a render can address")]
     FilmTooLarge { width: u32, height: u32 },
-    #[error("unknown integrator '{0}': expected one of {names}", names = INTEGRATOR_NAMES.join(", "))]
-    UnknownIntegrator(String),
+    /// A name no row of the registry has; `known` lists the names that are.
+    #[error("unknown integrator '{name}': expected one of {known}")]
+    UnknownIntegrator { name: String, known: String },
     /// A budget, count or memory need beyond what a render can do (`check_budget`, `memory`).
     #[error("{0}")]
     Limit(String),
@@ -116,23 +118,13 @@ pub trait Integrator: Send + Sync {
     }
 }
 
-/// The names `create` accepts, in the order `plexus render --help` lists them.
-pub const INTEGRATOR_NAMES: &[&str] = &["pt", "bdpt", "light", "pssmlt", "mmlt", "rjmlt", "pmlt", "emlt"];
+/// The names `create` accepts, in the order `plexus render --help` lists them (the registry's).
+pub use registry::NAMES as INTEGRATOR_NAMES;
 
 /// The integrator called `name`, configured from `params` (the scene's `[integrator]` table merged
-/// with `--set` overrides; unknown keys are errors).
+/// with `--set` overrides; unknown keys are errors): its row of the `registry` builds it.
 pub fn create(name: &str, params: &toml::Table) -> Result<Box<dyn Integrator>, RenderError> {
-    match name {
-        "pt" => Ok(Box::new(pt::PathTracer::from_params(params)?)),
-        "bdpt" => Ok(Box::new(bdpt::Bdpt::from_params(params)?)),
-        "light" => Ok(Box::new(light_tracing::LightTracer::from_params(params)?)),
-        "pssmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Pssmlt, params)?)),
-        "mmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Mmlt, params)?)),
-        "rjmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Rjmlt, params)?)),
-        "pmlt" => Ok(Box::new(path_space::Pmlt::from_params(params)?)),
-        "emlt" => Ok(Box::new(ensemble::render::Emlt::from_params(params)?)),
-        other => Err(RenderError::UnknownIntegrator(other.to_string())),
-    }
+    (registry::lookup(name)?.create)(params)
 }
 
 /// Deserialises an integrator's settings struct from its parameter table; the message of an
