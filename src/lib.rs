@@ -6,15 +6,14 @@
 //! sample and evaluate, `film` accumulates and writes images, `job` says what a render is asked to
 //! do and may use (budget, limits, memory, run control) below everything that renders,
 //! `integrator` holds light transport,
-//! `stats` and `metrics` measure, `bench` times the accelerators and the path tracer, `huge_pages`
-//! places large randomly read arrays (textures, the BVH) on transparent huge pages.
+//! `stats` and `metrics` measure, `bench` times the accelerators and the path tracer, `process`
+//! says what plexus does to its own process (transparent huge pages, flush-to-zero) and why.
 
 pub mod accel;
 pub mod bench;
 pub mod camera;
 pub mod film;
 pub mod geometry;
-mod huge_pages;
 pub mod input_file;
 pub mod integrator;
 pub mod interrupt;
@@ -23,6 +22,7 @@ pub mod light;
 pub mod material;
 pub mod metrics;
 mod prefetch;
+pub mod process;
 pub mod sampling;
 pub mod scene;
 pub mod spectrum;

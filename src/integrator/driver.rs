@@ -291,7 +291,7 @@ impl Driver {
         let pool = ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("plexus-worker-{i}"))
-            .start_handler(|_| crate::accel::embree::set_flush_denormals())
+            .start_handler(|_| crate::process::denormals::set_flush_denormals())
             .build()
             .map_err(|e| RenderError::ThreadPool(e.to_string()))?;
         Ok(Driver { pool, threads, seed: job.seed, width: width as usize, height: height as usize, clock })
