@@ -81,26 +81,6 @@ pub fn resolve_threads(explicit: Option<usize>, option: &str) -> anyhow::Result<
     }
 }
 
-/// Every limit a render is checked against before work starts: the budget (`budget_option` names
-/// its source) and the memory, by the integrator's registry row, of its film, pass buffers and chains against what the process may
-/// allocate (`plexus::job::memory`, with the integrator's own estimate from
-/// `plexus::integrator::memory`).
-pub fn check_render_limits(
-    scene: &plexus::scene::Scene,
-    integrator: &plexus::integrator::registry::Row,
-    params: &toml::Table,
-    width: u32,
-    height: u32,
-    budget: plexus::job::Budget,
-    budget_option: &str,
-) -> anyhow::Result<()> {
-    use plexus::job::{check_budget, memory};
-    check_budget(budget, width, height, budget_option).map_err(bad_input)?;
-    let scene = scene.memory();
-    let needed = (integrator.memory)(params, width, height).map_err(bad_input)?.with_scene(scene);
-    memory::check_fits(&needed, width, height, memory::available_memory(scene.total())).map_err(bad_input)
-}
-
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Commands::Render(args) => render::run(args),

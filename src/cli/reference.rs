@@ -70,9 +70,8 @@ pub fn run_reference(args: &ReferenceArgs) -> anyhow::Result<()> {
     let params = integrator::merge_params(&base, &overrides);
     let row = integrator::registry::lookup(&args.integrator)?;
     let integ = (row.create)(&params)?;
-    let camera = &loaded.scene.camera;
     let budget_option = if args.spp.is_some() { "--spp" } else { "--time" };
-    super::check_render_limits(&loaded.scene, row, &params, camera.width, camera.height, budget, budget_option)?;
+    row.check_limits(&loaded.scene, &params, budget, budget_option).map_err(bad_input)?;
     let load_time = load_start.elapsed().as_secs_f64();
 
     let job = RenderJob { budget, seed: args.seed, threads };

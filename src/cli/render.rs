@@ -95,22 +95,13 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let plan = resolve(&args, &loaded, &overrides)?;
     let row = registry::lookup(&plan.integrator)?;
     let integrator = (row.create)(&plan.params)?;
-    let camera = &loaded.scene.camera;
     let budget_option = match (args.spp, args.time, plan.budget) {
         (Some(_), _, _) => "--spp",
         (None, Some(_), _) => "--time",
         (None, None, Budget::SamplesPerPixel(_)) => "render.spp",
         (None, None, Budget::Seconds(_)) => "render.time",
     };
-    super::check_render_limits(
-        &loaded.scene,
-        row,
-        &plan.params,
-        camera.width,
-        camera.height,
-        plan.budget,
-        budget_option,
-    )?;
+    row.check_limits(&loaded.scene, &plan.params, plan.budget, budget_option).map_err(bad_input)?;
 
     // Every output is checked before any work, so a typo costs nothing.
     let (states, images): (Vec<PathBuf>, Vec<PathBuf>) = plan.outputs.iter().cloned().partition(|p| is_state_path(p));
@@ -205,7 +196,7 @@ fn resolve(args: &RenderArgs, loaded: &LoadedScene, overrides: &[(String, toml::
             (None, None) => Budget::SamplesPerPixel(DEFAULT_SPP),
         },
     };
-    // The budget's limits are checked in `check_render_limits`, which knows the film.
+    // The budget's limits are checked with the memory (`Row::check_limits`), which knows the film.
     let threads = args.options.threads_or(render.threads)?;
 
     let outputs = if !args.out.is_empty() {

@@ -97,7 +97,7 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
         (None, Some(_)) => "--time",
         (None, None) => "the state's budget",
     };
-    super::check_render_limits(&loaded.scene, row, &params, camera.width, camera.height, budget, option)?;
+    row.check_limits(&loaded.scene, &params, budget, option).map_err(bad_input)?;
     let checkpoint_every = super::session::checkpoint_interval(args.checkpoint_every)?;
     let images: Vec<PathBuf> =
         if args.out.is_empty() { outputs_below_state(&args.state, &h.outputs)? } else { args.out.clone() };

@@ -9,7 +9,9 @@
 //! reports them; unknown keys are refused with the valid ones (`settings_from_table`).
 
 use super::{bdpt, ensemble, light_tracing, memory, path_space, pss, pt, Integrator, RenderError};
-use crate::job::memory::RenderMemory;
+use crate::job::memory::{available_memory, check_fits, RenderMemory};
+use crate::job::{check_budget, Budget};
+use crate::scene::Scene;
 use pss::settings::MltVariant;
 
 /// Where an integrator's work units live (`driver`'s render model).
@@ -67,6 +69,36 @@ impl Row {
     /// names none): the settings struct as the JSON report gives it.
     pub fn settings(&self, params: &toml::Table) -> Result<serde_json::Value, RenderError> {
         Ok((self.create)(params)?.settings_json())
+    }
+
+    /// Every limit a render of this integrator with `params` is checked against before work
+    /// starts, as `plexus render`, `resume` and `reference` check it: the budget (`option` names its
+    /// source) for the scene's film, and the row's memory estimate with the built scene's bytes
+    /// against what the process may use. Returns the estimate.
+    pub fn check_limits(
+        &self,
+        scene: &Scene,
+        params: &toml::Table,
+        budget: Budget,
+        option: &str,
+    ) -> Result<RenderMemory, RenderError> {
+        self.check_limits_within(scene, params, budget, option, available_memory(scene.memory().total()))
+    }
+
+    /// [`Row::check_limits`] against `available` bytes instead of the process's (`None`: no bound).
+    pub fn check_limits_within(
+        &self,
+        scene: &Scene,
+        params: &toml::Table,
+        budget: Budget,
+        option: &str,
+        available: Option<u64>,
+    ) -> Result<RenderMemory, RenderError> {
+        let (width, height) = (scene.camera.width, scene.camera.height);
+        check_budget(budget, width, height, option)?;
+        let needed = (self.memory)(params, width, height)?.with_scene(scene.memory());
+        check_fits(&needed, width, height, available)?;
+        Ok(needed)
     }
 }
 
