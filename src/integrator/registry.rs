@@ -1,8 +1,9 @@
 //! The integrators by name: one row each, with everything the rest of plexus asks of an integrator
 //! before it renders. The command line's help and errors list the rows' names, `create` builds
-//! from a row, `render` and `info` check a row's memory estimate, and the session options
-//! (checkpoints, resume, shards) are offered by a row's capabilities. Adding an integrator is its
-//! module and one row here.
+//! from a row, `render`, `resume` and `reference` check a row's memory estimate
+//! (`Row::check_limits`) and `info` prints it, and the session options (checkpoints, resume,
+//! shards) are offered by a row's capabilities. Adding an integrator is its module and one row
+//! here.
 //!
 //! A row's settings are the integrator's settings struct: `Row::settings` gives its keys with the
 //! values in effect for the parameters (the defaults for an empty table), as the render's JSON
