@@ -60,7 +60,6 @@
 //!   its own b_d / iterations only at output, so its image too depends on the seed and the chain
 //!   count only, not on the threads.
 
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -196,25 +195,9 @@ pub type Snapshot<'a, U, S> = dyn Fn(&PassBoundary<'_, U, S>) -> Image + 'a;
 /// Receives a pass boundary to save as a checkpoint (see [`RunControl::checkpoint_every`]).
 pub type CheckpointHook<'a, U, S> = dyn Fn(&PassBoundary<'_, U, S>) + 'a;
 
-/// What can end a run before its budget, and how often it offers checkpoints: both only at pass
-/// boundaries, so what is saved is a state the render model can resume from.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct RunControl<'a> {
-    /// Set (by a signal handler) to stop at the next pass boundary.
-    pub stop: Option<&'a AtomicBool>,
-    /// Stop when the schedule reaches this pass (`passes_done` ≥ it): a deterministic stand-in for
-    /// a signal, for tests of interrupt and resume.
-    pub stop_at_pass: Option<u64>,
-    /// Offer a checkpoint at a pass boundary once at least this long has passed since the run
-    /// started or the last one.
-    pub checkpoint_every: Option<Duration>,
-}
-
-impl RunControl<'_> {
-    fn stop_requested(&self, passes_done: u64) -> bool {
-        self.stop.is_some_and(|f| f.load(Ordering::SeqCst)) || self.stop_at_pass.is_some_and(|n| passes_done >= n)
-    }
-}
+// What can stop a run lives in the job layer, below the state files that carry it in a
+// `Session`; it is the driver that reads it.
+pub use crate::job::RunControl;
 
 /// Which passes of the schedule a run renders: pass p when p mod `count` = `index` (the pass
 /// shards of pt, BDPT and light tracing); every pass by default.
@@ -308,7 +291,7 @@ impl Driver {
         let pool = ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("plexus-worker-{i}"))
-            .start_handler(|_| crate::accel::embree::set_flush_denormals())
+            .start_handler(|_| crate::process::denormals::set_flush_denormals())
             .build()
             .map_err(|e| RenderError::ThreadPool(e.to_string()))?;
         Ok(Driver { pool, threads, seed: job.seed, width: width as usize, height: height as usize, clock })

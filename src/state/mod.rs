@@ -40,7 +40,7 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::integrator::Budget;
+use crate::job::Budget;
 use crate::stats::Counters;
 
 pub use merge::merge_states;

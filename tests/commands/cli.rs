@@ -165,6 +165,36 @@ fn unknown_integrator_lists_the_valid_ones() {
     render_fails(&dir, &scene, &["--integrator", "magic"], &["unknown integrator 'magic'", "pt"]);
     let in_file = write(&dir, "t.toml", &format!("{}\n[integrator]\ntype = \"magic\"\n", good_scene()));
     render_fails(&dir, &in_file, &[], &["unknown integrator 'magic'", "pt"]);
+    // The list is the registry's, every row of it, in its order.
+    let every = plexus::integrator::registry::NAMES.join(", ");
+    render_fails(&dir, &scene, &["--integrator", "magic"], &[&format!("expected one of {every}")]);
+    let help = plexus(&["render", "--help"], &dir);
+    assert!(String::from_utf8_lossy(&help.stdout).contains(&every), "render --help lists {every}");
+}
+
+/// The session options are offered by the integrator's registry row: an integrator whose row says
+/// it keeps no state refuses a checkpoint and a shard before any work, and another one accepts them.
+#[test]
+fn session_options_follow_the_registry_capabilities() {
+    use plexus::integrator::registry::INTEGRATORS;
+    let tmp = temp_dir("capabilities");
+    let dir = tmp.path().to_path_buf();
+    let scene = write(&dir, "s.toml", &good_scene());
+    let stateless = INTEGRATORS.iter().find(|r| !r.capabilities.checkpoint).expect("a row without checkpoints");
+    let message = format!("the {} integrator cannot be interrupted and resumed", stateless.name);
+    for args in [&["--checkpoint", "c.pxstate"][..], &["--shard", "0/2", "--out", "p.pxstate"][..]] {
+        let mut all = vec!["--integrator", stateless.name, "--spp", "1"];
+        all.extend_from_slice(args);
+        render_fails(&dir, &scene, &all, &[&message]);
+    }
+    assert!(!dir.join("c.pxstate").exists() && !dir.join("p.pxstate").exists());
+    let with = INTEGRATORS.iter().find(|r| r.capabilities.checkpoint && r.capabilities.shard).expect("a row with both");
+    let o = plexus(
+        &["render", &scene, "--integrator", with.name, "--spp", "1", "--shard", "0/2", "--out", "p.pxstate"],
+        &dir,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(dir.join("p.pxstate").is_file());
 }
 
 #[test]

@@ -7,9 +7,13 @@ use std::path::Path;
 
 use plexus::camera::Camera;
 use plexus::film::Image;
-use plexus::integrator::driver::RunControl;
-use plexus::integrator::{create, Budget, Integrator, NoProgress, RenderJob};
+use plexus::integrator::driver::{ImagePart, ImageRender, RunControl};
+use plexus::integrator::registry::{self, Capabilities, Row, Space};
+use plexus::integrator::{create, Budget, Integrator, NoProgress, Progress, RenderError, RenderJob, RenderOutput};
+use plexus::job::memory::RenderMemory;
+use plexus::sampling::UniformSource;
 use plexus::scene::{load_scene, Scene};
+use plexus::spectrum::Rgb;
 use plexus::state::{merge_states, RenderState, Session, Shard, StateFile, StateHeader};
 
 fn scene(name: &str, width: u32, height: u32) -> Scene {
@@ -257,4 +261,137 @@ fn merge_refuses_mismatched_overlapping_and_missing_shards() {
     let mut whole = b;
     whole.1.header.shard = None;
     assert!(merge(&[a, whole]).contains("not a shard"));
+}
+
+/// A dummy integrator for the registry test: every sample of a pixel adds `value` times a number
+/// from the sample's own stream, so a resume that repeated or skipped a pass would change the image.
+/// Its `reserve` setting is memory its row's estimate counts as chains.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Default)]
+#[serde(deny_unknown_fields, default)]
+struct Flat {
+    value: f32,
+    reserve: u64,
+}
+
+impl Flat {
+    fn from_params(params: &toml::Table) -> Result<Flat, RenderError> {
+        plexus::integrator::settings_from_table("flat", params)
+    }
+
+    fn memory(params: &toml::Table, width: u32, height: u32) -> Result<RenderMemory, RenderError> {
+        let pixels = width as u64 * height as u64;
+        let chains = Flat::from_params(params)?.reserve;
+        Ok(RenderMemory { scene: Default::default(), film: pixels * 36, pass_buffers: pixels * 16, chains })
+    }
+}
+
+impl Integrator for Flat {
+    fn name(&self) -> &'static str {
+        "flat"
+    }
+
+    fn settings_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+
+    fn run_session(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+        save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
+        let render =
+            ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?.with_session(*session, save)?;
+        let value = self.value;
+        let (run, _) = render.run(
+            |_| (),
+            |x, y, sampler, slot| {
+                let u = sampler.stream(0).next_1d();
+                slot.film.add(x as usize, y as usize, Rgb::splat(value * u));
+                slot.counters.samples += 1;
+            },
+        );
+        Ok(run.into_session())
+    }
+
+    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
+        ImagePart::output_of_state(state)
+    }
+
+    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
+        ImagePart::merge(parts)
+    }
+}
+
+/// Registering an integrator is one row: with the row added to the shipped ones, the dummy is
+/// found by name (and an unknown name lists it), its row's memory estimate is what the limits check
+/// refuses, and it renders, checkpoints, is stopped, saved to a state file and resumed to the
+/// uninterrupted image bit for bit — through the library calls `plexus render` and `resume` make
+/// (`registry::find`, `Row::create`, `Row::check_limits`, `render_session` under a `Session`,
+/// `StateFile`). The shipped table does not see it.
+#[test]
+fn a_dummy_integrator_registered_by_one_row_renders_checks_memory_and_checkpoints() {
+    let mut rows = registry::INTEGRATORS.to_vec();
+    rows.push(Row {
+        name: "flat",
+        create: |p| Ok(Box::new(Flat::from_params(p)?)),
+        memory: Flat::memory,
+        capabilities: Capabilities::sessions(Space::Image),
+    });
+    assert!(registry::lookup("flat").is_err(), "the shipped table is unchanged");
+    let unknown = registry::find(&rows, "nope").expect_err("unknown").to_string();
+    assert!(unknown.contains("flat") && unknown.contains("pt"), "{unknown}");
+    let row = registry::find(&rows, "flat").expect("registered");
+    assert_eq!(row.settings(&toml::Table::new()).expect("defaults"), serde_json::json!({"value": 0.0, "reserve": 0}));
+    assert!((row.create)(&toml::from_str("colour = 1").expect("toml")).is_err(), "unknown keys are refused");
+
+    // The limits check counts the row's estimate, with the scene.
+    let scene = scene("cornell-box", 64, 48);
+    let params: toml::Table = toml::from_str("value = 0.75\nreserve = 1000").expect("params");
+    let budget = Budget::SamplesPerPixel(70);
+    let checked = row.check_limits_within(&scene, &params, budget, "--spp", None).expect("fits");
+    assert_eq!(checked.chains, 1000);
+    assert_eq!(checked.film, 64 * 48 * 36);
+    assert_eq!(checked.scene, scene.memory());
+    let room = Some(checked.total());
+    assert!(row.check_limits_within(&scene, &params, budget, "--spp", room).is_ok());
+    let greedy: toml::Table = toml::from_str("value = 0.75\nreserve = 1001").expect("params");
+    let refused = row.check_limits_within(&scene, &greedy, budget, "--spp", room).expect_err("one byte too many");
+    assert!(refused.to_string().contains("lower the resolution, max_depth, bootstrap or chains"), "{refused}");
+    let over = row.check_limits_within(&scene, &params, Budget::SamplesPerPixel(0), "--spp", None);
+    assert!(over.expect_err("no samples").to_string().contains("--spp 0"));
+
+    // Rendered, checkpointed at every pass boundary, stopped, saved and resumed.
+    let integrator = (row.create)(&params).expect("integrator");
+    let job = RenderJob { budget, seed: 7, threads: 2 };
+    let full = integrator.render_session(&scene, &job, &NoProgress, &Session::default()).expect("render");
+    assert!(full.output.image.mean()[0] > 0.3, "the dummy's image is its value times a uniform number");
+    let checkpoints = std::cell::RefCell::new(Vec::new());
+    let keep = |state: RenderState| checkpoints.borrow_mut().push(state.passes_done);
+    let stopped = Session {
+        control: RunControl {
+            stop_at_pass: Some(2),
+            checkpoint_every: Some(std::time::Duration::ZERO),
+            ..RunControl::default()
+        },
+        checkpoint: Some(&keep),
+        ..Session::default()
+    };
+    let first = integrator.render_session(&scene, &job, &NoProgress, &stopped).expect("stopped run");
+    assert!(first.state.interrupted && first.state.passes_done == 2);
+    assert_eq!(*checkpoints.borrow(), vec![1, 2], "a checkpoint at each pass boundary");
+    let file = through_file(header(integrator.as_ref(), "value = 0.75\nreserve = 1000", &job, None), first.state);
+    assert_eq!(file.header.integrator, "flat");
+    let resumed = Session { resume: Some(&file.state), ..Session::default() };
+    let last = integrator.render_session(&scene, &job, &NoProgress, &resumed).expect("resumed run");
+    assert!(last.state.complete);
+    assert_eq!(bits(&last.output.image), bits(&full.output.image), "the resumed image differs");
+    // The control: resuming as if no pass had been done renders passes 0 and 1 twice.
+    let mut wrong = file.state.clone();
+    wrong.passes_done = 0;
+    let session = Session { resume: Some(&wrong), ..Session::default() };
+    let out = integrator.render_session(&scene, &job, &NoProgress, &session).expect("wrong resume");
+    assert_ne!(bits(&out.output.image), bits(&full.output.image), "the negative control must differ");
 }

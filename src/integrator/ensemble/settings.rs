@@ -4,10 +4,18 @@
 use serde::{Deserialize, Serialize};
 
 use super::directional::KAPPA_MAX;
-pub use super::environment::EnvironmentKernel;
 use crate::integrator::bdpt::MisHeuristic;
 use crate::integrator::pss::settings::{MAX_BOOTSTRAP, MAX_CHAINS, MAX_DEPTH};
 use crate::integrator::{settings_from_table, RenderError};
+
+/// Which guided kernel the environment perturbation uses (`environment`'s module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EnvironmentKernel {
+    #[default]
+    Directional,
+    Hemispherical,
+}
 
 /// Settings of ensemble MLT.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -57,6 +57,7 @@ pub mod strategy;
 #[cfg(test)]
 mod tests;
 pub mod trace;
+pub mod vertex;
 
 pub use chain::{Pmlt, PmltRun};
 pub use kernel::{DirectionKernel, RasterKernel};
