@@ -434,6 +434,7 @@ impl<'a> ImageRender<'a> {
             Some(&preview),
             self.session.control,
             self.session.checkpoint.is_some().then_some(&checkpoint as &CheckpointHook<'_, Tile, S>),
+            None,
         );
         let spp = plan.spp_in_set(set, out.passes);
         let scale = if spp > 0 { 1.0 / spp as f64 } else { 0.0 };
