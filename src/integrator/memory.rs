@@ -12,7 +12,9 @@
 //!   depth), the normalised output image (3 × f32 per pixel), one pass of splat buffers (16 bytes a
 //!   contribution, at least one per pixel sample of the pass), and for MLT the bootstrap's targets
 //!   (one f32 plus one f64 of the discrete distribution per bootstrap path and depth) and the
-//!   chains' sub-chains (path-space MLT: the chains' paths).
+//!   chains' sub-chains (path-space MLT: the chains' paths; ensemble MLT: its 2 × `ensemble_size`
+//!   chains' paths in each of its `pairs` pairs, one film layer per pair, and per pair the view
+//!   of its fixed ensemble that the guided strategies read: Y's vertex places and the tree).
 //!
 //! The estimate is a lower bound: it omits scratch state, so a render it refuses certainly would
 //! not have fitted. The scene is already built when the estimate is checked (mesh readers bound
@@ -68,6 +70,13 @@ impl SceneMemory {
 
 /// Bytes of one vertex of a path-space chain's path (`path_space::PathVertex`).
 const PATH_VERTEX_BYTES: u64 = std::mem::size_of::<crate::integrator::path_space::PathVertex>() as u64;
+
+/// Bytes per vertex of a path in an ensemble's view (`ensemble::guide::GuideView`): its place
+/// for the similarity weights (a `DVec3`).
+const VIEW_PLACE_BYTES: u64 = 3 * 8;
+/// Bytes per path of an ensemble's view beyond its places: where its places start (u32) and its
+/// index in the tree's signature order (u32, `ensemble::tree::EnsembleTree`).
+const VIEW_PATH_BYTES: u64 = 4 + 4;
 
 /// The memory of a render: the scene it renders, its film, pass buffers and integrator state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -129,6 +138,30 @@ pub fn render_memory(
         let path = mul(settings.max_depth as u64 + 2, PATH_VERTEX_BYTES, "a chain's path")?;
         let chains = mul(mul(settings.chains, 2, "the chains")?, path, "the chains")?;
         let chains = bootstrap.checked_add(chains).ok_or_else(|| too_large("the chains"))?;
+        return Ok(RenderMemory { scene: SceneMemory::default(), film, pass_buffers, chains });
+    }
+    if integrator == "emlt" {
+        // Ensemble MLT: one W × H film layer per pair; the bootstrap's targets; 2 × ensemble_size
+        // chains per pair with their current path and a proposal, as pmlt's; and, while a pass
+        // runs, per pair the view of Y (ensemble_size paths: their vertex places, place starts and
+        // tree order). Y's paths move into the view, so they are not counted twice.
+        let settings = crate::integrator::ensemble::settings::EmltSettings::from_params(params)?;
+        let layers = mul(pixels, settings.pairs, "the per-pair film")?;
+        let film = mul(layers, FILM_PIXEL_BYTES, "the per-pair film")?;
+        let film = film.checked_add(image).ok_or_else(|| too_large("the film"))?;
+        let bootstrap = mul(settings.bootstrap, BOOTSTRAP_PATH_BYTES, "the bootstrap")?;
+        let vertices = settings.max_depth as u64 + 2;
+        let path = mul(vertices, PATH_VERTEX_BYTES, "a chain's path")?;
+        let chains = mul(mul(settings.ensemble_size, settings.pairs, "the ensembles")?, 2, "the ensembles")?;
+        let paths = mul(mul(chains, 2, "the chains")?, path, "the chains")?;
+        let view_path = mul(vertices, VIEW_PLACE_BYTES, "a view's path")?
+            .checked_add(VIEW_PATH_BYTES)
+            .ok_or_else(|| too_large("a view's path"))?;
+        let views = mul(mul(settings.ensemble_size, settings.pairs, "the views")?, view_path, "the views")?;
+        let chains = [paths, views]
+            .iter()
+            .try_fold(bootstrap, |a, &b| a.checked_add(b))
+            .ok_or_else(|| too_large("the chains"))?;
         return Ok(RenderMemory { scene: SceneMemory::default(), film, pass_buffers, chains });
     }
     let Some(variant) = variant else {
@@ -195,7 +228,7 @@ pub fn check_fits(memory: &RenderMemory, width: u32, height: u32, available: Opt
             gib(memory.pass_buffers),
             gib(memory.chains),
             gib(available),
-            if memory.chains > 0 { ", max_depth, bootstrap or chains" } else { "" }
+            if memory.chains > 0 { ", max_depth, bootstrap or chains (emlt: ensemble_size or pairs)" } else { "" }
         )));
     }
     Ok(())
@@ -241,5 +274,22 @@ mod tests {
         let huge: toml::Table =
             toml::from_str("chains = 16777216\nmax_depth = 1024\nbootstrap = 4294967296").expect("toml");
         assert!(render_memory("pmlt", &huge, 10, 10).expect("counted").total() > 1 << 40);
+    }
+
+    /// emlt: a film layer per pair, the bootstrap's targets, 2 × ensemble_size × pairs chains of
+    /// two paths each, and per pair the view of Y (places and indices of ensemble_size paths).
+    /// Without its branch emlt counted as an image integrator: chains 0.
+    #[test]
+    fn emlt_counts_its_pairs_chains_and_views() {
+        let params: toml::Table =
+            toml::from_str("max_depth = 7\nbootstrap = 1000\nensemble_size = 10\npairs = 3").expect("toml");
+        let m = render_memory("emlt", &params, 10, 10).expect("small");
+        assert_eq!(m.film, 3 * 100 * 24 + 100 * 12);
+        let view = 9 * 24 + 8;
+        assert_eq!(m.chains, 1000 * 12 + 3 * 2 * 10 * 2 * 9 * PATH_VERTEX_BYTES + 3 * 10 * view);
+        let huge: toml::Table = toml::from_str("ensemble_size = 8388608\nmax_depth = 1024").expect("toml");
+        let m = render_memory("emlt", &huge, 10, 10).expect("counted");
+        assert!(m.chains > 1 << 40, "{m:?}");
+        assert!(check_fits(&m, 10, 10, Some(64 << 30)).is_err());
     }
 }
