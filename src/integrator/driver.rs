@@ -74,8 +74,9 @@ use crate::stats::Counters;
 mod chains;
 mod image;
 pub use chains::{
-    boundary_counters, chain_output_of_state, chain_scale, layers_to_image, load_units, merge_chain_parts, run_chains,
-    save_units, ChainBootstrap, ChainIntegrator, ChainPart, ChainRender, ChainRun, ChainStats, Tally,
+    boundary_counters, chain_output_of_state, chain_scale, expected_value_splats, layers_to_image, load_units,
+    merge_chain_parts, run_chains, save_units, ChainBootstrap, ChainIntegrator, ChainPart, ChainRender, ChainRun,
+    ChainStats, Tally,
 };
 pub use image::{state_film, ImagePart, ImagePlan, ImageRender, ImageRun, Tile, TileSamples, TILE_SIZE};
 

@@ -200,8 +200,8 @@ pub fn chain_output_of_state<I: ChainIntegrator>(
     integrator.chain_output(&film, &units, part.stats, &part.bootstrap, tally)
 }
 
-/// The film's normalisation for a chain estimator with expected-value splats: b·P/N (Veach 1997,
-/// Sec. 11.3; Kelemen et al. 2002, Sec. 4). The chains sample x̄ ∝ f*/b, each of N iterations
+/// The film's normalisation for a chain estimator with expected-value splats: b·P/N (docs/mlt.md,
+/// "Normalisation"; Veach & Guibas 1997). The chains sample x̄ ∝ f*/b, each of N iterations
 /// splats a unit of f*-weight, and pixel j's value is P·∫ 1_j f dμ in the camera's whole-film
 /// normalisation, so the film's sums times b·P/N estimate the image. `b` is the normalisation
 /// constant of the layer (MMLT, RJMLT: n_d·b_d of depth d), `pixels` the image's P, `iterations`
@@ -211,6 +211,21 @@ pub fn chain_scale(b: f64, pixels: u64, iterations: u64) -> f64 {
         b * pixels as f64 / iterations as f64
     } else {
         0.0
+    }
+}
+
+/// The expected-value splats of Veach & Guibas 1997 (bibliography.md), which every chain here
+/// makes: every
+/// iteration records both the proposal, with its acceptance probability `a`, and the current
+/// state, with 1 − a, whatever the acceptance decides, so that rejected proposals contribute too.
+/// Calls `splat(proposal, weight)` for the proposal (`true`) and then the current state, each only
+/// with a positive weight.
+pub fn expected_value_splats(a: f64, mut splat: impl FnMut(bool, f64)) {
+    if a > 0.0 {
+        splat(true, a);
+    }
+    if a < 1.0 {
+        splat(false, 1.0 - a);
     }
 }
 

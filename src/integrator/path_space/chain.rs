@@ -37,6 +37,7 @@ use crate::integrator::bdpt::path::full_path;
 use crate::integrator::bdpt::{
     connect_all, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch, FilmRegion, Vertex,
 };
+use crate::integrator::driver::expected_value_splats;
 use crate::integrator::pss::stats::{MltStats, StrategyStats};
 use crate::integrator::{RenderError, RenderOutput};
 use crate::sampling::{Distribution1D, Rng};
@@ -174,12 +175,11 @@ pub fn step(
         }
         proposal = y.map(|y| y.path);
     }
-    if let Some(y) = proposal.as_ref().filter(|_| a > 0.0) {
-        splat(y, a, film);
-    }
-    if a < 1.0 {
-        splat(current, 1.0 - a, film);
-    }
+    expected_value_splats(a, |is_proposal, w| match (is_proposal, proposal.as_ref()) {
+        (true, Some(y)) => splat(y, w, film),
+        (true, None) => {}
+        (false, _) => splat(current, w, film),
+    });
     let accepted = a > 0.0 && rng.uniform_f64() < a;
     if let Some((i, _)) = chosen {
         if let Some(s) = stats.strategies.as_mut().and_then(|s| s.get_mut(i)) {

@@ -66,7 +66,7 @@ use crate::integrator::bdpt::{
     connect_all, evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch,
     FilmRegion, Vertex,
 };
-use crate::integrator::driver::chain_scale;
+use crate::integrator::driver::{chain_scale, expected_value_splats};
 use crate::integrator::{RenderError, RenderOutput};
 use crate::sampling::Rng;
 use crate::scene::Scene;
@@ -482,10 +482,10 @@ impl Mlt {
         };
         counters.samples += 1;
         let large_step_target = large.then_some(proposal.target);
-        self.splat(d, &proposal, a, film);
-        if a < 1.0 {
-            self.splat(d, &chain.current, 1.0 - a, film);
-        }
+        // Weights in f64 and back: a is an f32, so a and 1 − a come back as the f32 values.
+        expected_value_splats(a as f64, |is_proposal, w| {
+            self.splat(d, if is_proposal { &proposal } else { &chain.current }, w as f32, film)
+        });
         let accepted = rng.uniform() < a;
         let kind = if jump {
             MoveKind::Jump
