@@ -73,7 +73,9 @@ use crate::stats::Counters;
 mod chains;
 mod image;
 pub use chains::{
-    boundary_counters, load_units, merge_chain_parts, merge_slot_states, save_units, ChainPart, ChainSession, Tally,
+    boundary_counters, chain_output_of_state, chain_scale, expected_value_splats, layers_to_image, load_units,
+    merge_chain_parts, run_chains, save_units, ChainBootstrap, ChainIntegrator, ChainPart, ChainRender, ChainRun,
+    ChainStats, Tally,
 };
 pub use image::{state_film, ImagePart, ImagePlan, ImageRender, ImageRun, Tile, TileSamples, TILE_SIZE};
 
@@ -198,6 +200,19 @@ pub type CheckpointHook<'a, U, S> = dyn Fn(&PassBoundary<'_, U, S>) + 'a;
 // What can stop a run lives in the job layer, below the state files that carry it in a
 // `Session`; it is the driver that reads it.
 pub use crate::job::RunControl;
+
+/// Which side of a pass a [`PassHook`] is called on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PassEdge {
+    /// Before the pass's items run.
+    Before,
+    /// After its buffers are applied, before previews and checkpoints read the boundary.
+    After,
+}
+
+/// Work on the units between passes, on the driver's thread (ensemble MLT moves the fixed
+/// ensemble's paths into the view its chains read during the pass, and back after it).
+pub type PassHook<'a, U> = dyn Fn(PassEdge, u64, &mut [U]) + 'a;
 
 /// Which passes of the schedule a run renders: pass p when p mod `count` = `index` (the pass
 /// shards of pt, BDPT and light tracing); every pass by default.
@@ -337,12 +352,14 @@ impl Driver {
             snapshot,
             RunControl::default(),
             None,
+            None,
         )
     }
 
     /// [`Driver::run`] from `start` (a resumed render, or a shard's set of passes), under
     /// `control`: before each pass the run ends if `control` asks it to stop, and after a pass at
-    /// most every `control.checkpoint_every` the boundary goes to `checkpoint`. A budget of
+    /// most every `control.checkpoint_every` the boundary goes to `checkpoint`; `hook` sees the
+    /// units before and after every pass it runs. A budget of
     /// `Passes::Count(n)` means schedule positions below n, so a resumed run ends where the
     /// uninterrupted one would have; a time budget counts from this run's start.
     #[allow(clippy::too_many_arguments)]
@@ -356,6 +373,7 @@ impl Driver {
         snapshot: Option<&Snapshot<'_, U, S>>,
         control: RunControl<'_>,
         checkpoint: Option<&CheckpointHook<'_, U, S>>,
+        hook: Option<&PassHook<'_, U>>,
     ) -> RunOutput<U, S>
     where
         U: Send,
@@ -424,6 +442,9 @@ impl Driver {
                 break;
             }
             let pass_start = clock.now();
+            if let Some(hook) = hook {
+                hook(PassEdge::Before, pass, &mut units);
+            }
             // Deal the units to slots: unit u to slot u mod threads, in increasing unit order.
             let mut dealt: Vec<Vec<(usize, &mut U, &mut SplatBuffer)>> =
                 (0..threads).map(|_| Vec::with_capacity(unit_count / threads + 1)).collect();
@@ -448,6 +469,9 @@ impl Driver {
             for buffer in buffers.iter_mut() {
                 film.apply(buffer);
                 buffer.clear();
+            }
+            if let Some(hook) = hook {
+                hook(PassEdge::After, pass, &mut units);
             }
             let now = clock.now();
             last_pass = now.saturating_sub(pass_start);

@@ -7,8 +7,10 @@
 //! depth), the normalised output image (3 × f32 per pixel), one pass of splat buffers (16 bytes a
 //! contribution, at least one per pixel sample of the pass), and for MLT the bootstrap's targets
 //! (one f32 plus one f64 of the discrete distribution per bootstrap path and depth) and the
-//! chains' sub-chains (path-space MLT: the chains' paths). Every product is checked; an overflow
-//! is itself a refusal.
+//! chains' sub-chains (path-space MLT: the chains' paths; ensemble MLT: its 2 × `ensemble_size`
+//! chains' paths in each of its `pairs` pairs, one film layer per pair, and per pair the view of
+//! its fixed ensemble that the guided strategies read: Y's vertex places and the tree). Every
+//! product is checked; an overflow is itself a refusal.
 
 use super::pss::settings::{MltSettings, MltVariant};
 use super::RenderError;
@@ -31,6 +33,12 @@ const SUBCHAIN_BYTES_PER_VERTEX: u64 = 2 * 64;
 
 /// Bytes of one vertex of a path-space chain's path (`path_space::PathVertex`).
 const PATH_VERTEX_BYTES: u64 = std::mem::size_of::<crate::integrator::path_space::PathVertex>() as u64;
+/// Bytes per vertex of a path in an ensemble's view (`ensemble::guide::GuideView`): its place
+/// for the similarity weights (a `DVec3`).
+const VIEW_PLACE_BYTES: u64 = 3 * 8;
+/// Bytes per path of an ensemble's view beyond its places: where its places start (u32) and its
+/// index in the tree's signature order (u32, `ensemble::tree::EnsembleTree`).
+const VIEW_PATH_BYTES: u64 = 4 + 4;
 
 /// The film's sums (`layers` W × H layers of 3 × f64) with the output image, and one pass of splat
 /// buffers: what every integrator holds for a `width`×`height` film.
@@ -85,10 +93,22 @@ pub fn pmlt_memory(params: &toml::Table, width: u32, height: u32) -> Result<Rend
     Ok(RenderMemory { scene: SceneMemory::default(), film, pass_buffers, chains })
 }
 
-/// Ensemble MLT: its film and a pass's splat buffers. Its two ensembles of chains are not counted
-/// yet (the same figure the estimate gave emlt before it had a row of its own).
+/// Ensemble MLT: one W × H film layer per pair; the bootstrap's targets; 2 × ensemble_size chains
+/// per pair with their current path and a proposal, as pmlt's; and, while a pass runs, per pair
+/// the view of Y (ensemble_size paths: their vertex places, place starts and tree order). Y's
+/// paths move into the view, so they are not counted twice.
 pub fn emlt_memory(params: &toml::Table, width: u32, height: u32) -> Result<RenderMemory, RenderError> {
-    image_memory(params, width, height)
+    let settings = crate::integrator::ensemble::settings::EmltSettings::from_params(params)?;
+    let (film, pass_buffers) = film_and_pass(width, height, settings.pairs)?;
+    let bootstrap = mul(settings.bootstrap, BOOTSTRAP_PATH_BYTES, "the bootstrap")?;
+    let vertices = settings.max_depth as u64 + 2;
+    let path = mul(vertices, PATH_VERTEX_BYTES, "a chain's path")?;
+    let chains = mul(mul(settings.ensemble_size, settings.pairs, "the ensembles")?, 2, "the ensembles")?;
+    let paths = mul(mul(chains, 2, "the chains")?, path, "the chains")?;
+    let view_path = add(mul(vertices, VIEW_PLACE_BYTES, "a view's path")?, VIEW_PATH_BYTES, "a view's path")?;
+    let views = mul(mul(settings.ensemble_size, settings.pairs, "the views")?, view_path, "the views")?;
+    let chains = add(add(bootstrap, paths, "the chains")?, views, "the chains")?;
+    Ok(RenderMemory { scene: SceneMemory::default(), film, pass_buffers, chains })
 }
 
 #[cfg(test)]
@@ -119,5 +139,19 @@ mod tests {
         let huge: toml::Table =
             toml::from_str("chains = 16777216\nmax_depth = 1024\nbootstrap = 4294967296").expect("toml");
         assert!(pmlt_memory(&huge, 10, 10).expect("counted").total() > 1 << 40);
+    }
+
+    #[test]
+    fn emlt_counts_its_pairs_chains_and_views() {
+        let params: toml::Table =
+            toml::from_str("max_depth = 7\nbootstrap = 1000\nensemble_size = 10\npairs = 3").expect("toml");
+        let m = emlt_memory(&params, 10, 10).expect("small");
+        assert_eq!(m.film, 3 * 100 * 24 + 100 * 12);
+        let view = 9 * 24 + 8;
+        assert_eq!(m.chains, 1000 * 12 + 3 * 2 * 10 * 2 * 9 * PATH_VERTEX_BYTES + 3 * 10 * view);
+        let huge: toml::Table = toml::from_str("ensemble_size = 8388608\nmax_depth = 1024").expect("toml");
+        let m = emlt_memory(&huge, 10, 10).expect("counted");
+        assert!(m.chains > 1 << 40, "{m:?}");
+        assert!(crate::job::memory::check_fits(&m, 10, 10, Some(64 << 30)).is_err());
     }
 }

@@ -157,7 +157,7 @@ pub const INTEGRATORS: &[Row] = &[
         name: "emlt",
         create: |p| Ok(Box::new(ensemble::render::Emlt::from_params(p)?)),
         memory: memory::emlt_memory,
-        capabilities: Capabilities::whole_renders(Space::Chain),
+        capabilities: Capabilities::sessions(Space::Chain),
     },
 ];
 

@@ -123,7 +123,7 @@ pub fn check_fits(memory: &RenderMemory, width: u32, height: u32, available: Opt
             gib(memory.pass_buffers),
             gib(memory.chains),
             gib(available),
-            if memory.chains > 0 { ", max_depth, bootstrap or chains" } else { "" }
+            if memory.chains > 0 { ", max_depth, bootstrap or chains (emlt: ensemble_size or pairs)" } else { "" }
         )));
     }
     Ok(())

@@ -395,3 +395,119 @@ fn a_dummy_integrator_registered_by_one_row_renders_checks_memory_and_checkpoint
     let out = integrator.render_session(&scene, &job, &NoProgress, &session).expect("wrong resume");
     assert_ne!(bits(&out.output.image), bits(&full.output.image), "the negative control must differ");
 }
+
+/// emlt on the chain runner: a render of K = 2 ensemble pairs (4 passes: half-iterations of both
+/// pairs) stopped after pass 1 and after pass 3, every state through the file, resumes to the
+/// uninterrupted render's image, film sums and samples bit for bit; a resumed pass must know
+/// which half of each pair is X (pass 1's X is the second half) and give every pair back its Y.
+/// The negative control resumes the pass-1 state as if no pass were done (X and Y swapped, one
+/// half-iteration more) and must not give the image.
+#[test]
+fn emlt_interrupted_and_resumed_equals_the_uninterrupted_render_bit_for_bit() {
+    let scene = scene("cornell-box", 64, 48);
+    // it = 3072 / 64 = 48 steps per chain of X, 48 · 32 · 2 = 3072 mutations a pass: 4 passes.
+    let params = "max_depth = 4\nbootstrap = 2000\nensemble_size = 32\npairs = 2";
+    let integrator = create("emlt", &toml::from_str(params).expect("params")).expect("emlt");
+    let job = RenderJob { budget: Budget::SamplesPerPixel(4), seed: 7, threads: 2 };
+    let full = integrator.render_session(&scene, &job, &NoProgress, &Session::default()).expect("render");
+    assert!(full.output.image.mean()[0] > 0.0, "a black image tests nothing");
+    assert_eq!(full.state.passes_done, 4);
+    let stop = |pass: u64| Session {
+        control: RunControl { stop_at_pass: Some(pass), ..RunControl::default() },
+        ..Session::default()
+    };
+    let first = integrator.render_session(&scene, &job, &NoProgress, &stop(1)).expect("first run");
+    assert!(first.state.interrupted && first.state.passes_done == 1);
+    let file = through_file(header(integrator.as_ref(), params, &job, None), first.state.clone());
+    let second = Session { resume: Some(&file.state), ..stop(3) };
+    let second = integrator.render_session(&scene, &job, &NoProgress, &second).expect("second run");
+    assert!(second.state.interrupted && second.state.passes_done == 3);
+    let file = through_file(file.header, second.state);
+    let last = Session { resume: Some(&file.state), ..Session::default() };
+    let resumed = integrator.render_session(&scene, &job, &NoProgress, &last).expect("resumed run");
+    assert!(resumed.state.complete && !resumed.state.interrupted);
+    assert_eq!(bits(&resumed.output.image), bits(&full.output.image), "the resumed image differs");
+    assert_eq!(resumed.output.counters.samples, full.output.counters.samples);
+    let film_bits = |s: &RenderState| -> Vec<[u64; 3]> { s.film.iter().map(|p| p.map(f64::to_bits)).collect() };
+    assert_eq!(film_bits(&resumed.state), film_bits(&full.state), "film sums");
+    let again = integrator.output_of_state(&through_file(file.header, resumed.state).state).expect("output");
+    assert_eq!(bits(&again.image), bits(&full.output.image), "output_of_state");
+
+    let mut wrong = first.state;
+    wrong.passes_done = 0;
+    let session = Session { resume: Some(&wrong), ..Session::default() };
+    let out = integrator.render_session(&scene, &job, &NoProgress, &session).expect("wrong resume");
+    let differing = bits(&out.output.image).iter().zip(bits(&full.output.image)).filter(|(a, b)| **a != *b).count();
+    println!("emlt: a resume that forgets pass 1 was done differs at {differing} pixels");
+    assert!(differing > 0, "the negative control must differ");
+}
+
+/// A sharded emlt render is K independent ensemble pairs fixed at the start: shard k/N renders
+/// pairs k, k + N, … into their own film layers, so merging the N shards gives the unsharded
+/// K-pair render bit for bit — image, film sums and samples — not merely to within rounding (the
+/// other pairs' layers are zeros in a shard, and x + 0 = x). K = 3 pairs, N = 3 (a pair a shard)
+/// and N = 2 (pairs {0, 2} and {1}); a shard's bytes do not depend on its threads; a shard that
+/// would hold no pair is refused.
+#[test]
+fn emlt_shards_by_pair_merge_into_the_k_pair_render_bit_for_bit() {
+    let scene = scene("cornell-glass", 64, 48);
+    let params = "max_depth = 4\nbootstrap = 2000\nensemble_size = 16\npairs = 3";
+    let integrator = create("emlt", &toml::from_str(params).expect("params")).expect("emlt");
+    let job = RenderJob { budget: Budget::SamplesPerPixel(4), seed: 11, threads: 2 };
+    let full = integrator.render_session(&scene, &job, &NoProgress, &Session::default()).expect("render");
+    assert!(full.output.image.mean()[0] > 0.0, "a black image tests nothing");
+    let film_bits = |s: &RenderState| -> Vec<[u64; 3]> { s.film.iter().map(|p| p.map(f64::to_bits)).collect() };
+    for n in [3u64, 2] {
+        let shards: Vec<(std::path::PathBuf, StateFile)> = (0..n)
+            .map(|k| {
+                let shard = Shard { index: k, count: n };
+                let session = Session { shard: Some(shard), ..Session::default() };
+                let out = integrator.render_session(&scene, &job, &NoProgress, &session).expect("shard");
+                let file = through_file(header(integrator.as_ref(), params, &job, Some(shard)), out.state);
+                (format!("shard{k}.pxstate").into(), file)
+            })
+            .collect();
+        if n == 3 {
+            let one_thread = RenderJob { threads: 1, ..job.clone() };
+            let session = Session { shard: Some(Shard { index: 1, count: 3 }), ..Session::default() };
+            let out = integrator.render_session(&scene, &one_thread, &NoProgress, &session).expect("shard");
+            let bytes = |s: &RenderState| plexus::state::encode(s).expect("encode");
+            assert!(bytes(&out.state) == bytes(&shards[1].1.state), "emlt shard bytes depend on the threads");
+        }
+        let merged = merge_states(&shards, |parts| {
+            integrator.merge_parts(parts).map_err(|e| plexus::state::StateError::Mismatch(e.to_string()))
+        })
+        .expect("merge");
+        let image = integrator.output_of_state(&merged.state).expect("merged output").image;
+        assert_eq!(bits(&image), bits(&full.output.image), "N={n}: the merged image differs");
+        assert_eq!(film_bits(&merged.state), film_bits(&full.state), "N={n}: film sums");
+        assert_eq!(merged.state.counters.samples, full.output.counters.samples, "N={n}: samples");
+    }
+    let beyond = Session { shard: Some(Shard { index: 3, count: 4 }), ..Session::default() };
+    let err = integrator.render_session(&scene, &job, &NoProgress, &beyond).err().expect("a shard without a pair");
+    assert!(err.to_string().contains("pairs"), "{err}");
+}
+
+/// A chain render resumes only a state holding exactly its chains, in chain order (the runner's
+/// check before any chain is used): a shard's state (chains of one pair for emlt, every second
+/// chain for pmlt) given as a whole render's checkpoint is refused, where it once rendered the
+/// shard's chains alone as if they were the render.
+#[test]
+fn a_chain_state_without_the_renders_chains_is_refused() {
+    let scene = scene("cornell-box", 64, 48);
+    for (name, params) in [
+        ("emlt", "max_depth = 4\nbootstrap = 2000\nensemble_size = 16\npairs = 2"),
+        ("pmlt", "max_depth = 4\nbootstrap = 2000\nchains = 24"),
+    ] {
+        let integrator = create(name, &toml::from_str(params).expect("params")).expect("integrator");
+        let job = RenderJob { budget: Budget::SamplesPerPixel(4), seed: 7, threads: 2 };
+        let shard = Session { shard: Some(Shard { index: 0, count: 2 }), ..Session::default() };
+        let mut state = integrator.render_session(&scene, &job, &NoProgress, &shard).expect("shard").state;
+        state.units = None;
+        state.complete = false;
+        state.passes_done = 1;
+        let resume = Session { resume: Some(&state), ..Session::default() };
+        let err = integrator.render_session(&scene, &job, &NoProgress, &resume).err().expect("refused");
+        assert!(err.to_string().contains("chains are not the render's"), "{name}: {err}");
+    }
+}

@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use glam::DVec3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::settings::EmltSettings;
 use super::similarity::{place, places_similarity};
@@ -29,8 +29,8 @@ pub struct GuideCounts {
     pub similarity_ns: AtomicU64,
 }
 
-/// The plain-number copy of [`GuideCounts`] for the JSON report.
-#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+/// The plain-number copy of [`GuideCounts`] for the JSON report and render states.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct GuideReport {
     pub name: String,
     pub guided: u64,

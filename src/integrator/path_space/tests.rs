@@ -185,12 +185,12 @@ fn furnace_shares(strategy: Bidirectional, chains: u64, iterations: u64, max_dep
             let mut film = SplatBuffer::new(16, 16);
             let mut stats = new_stats(max_depth, &set);
             for _ in 0..burn_in {
-                step(&ctx, &set, &mut current, &mut rng, &mut stats, &mut film, &mut counters);
+                step(&ctx, &set, &mut current, &mut rng, &mut stats, &mut film, 0, &mut counters);
                 film.clear();
             }
             let mut stats = new_stats(max_depth, &set);
             for _ in 0..iterations {
-                step(&ctx, &set, &mut current, &mut rng, &mut stats, &mut film, &mut counters);
+                step(&ctx, &set, &mut current, &mut rng, &mut stats, &mut film, 0, &mut counters);
                 film.clear();
             }
             stats.per_depth.iter().map(|d| d.iterations as f64 / iterations as f64).collect()
