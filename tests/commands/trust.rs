@@ -584,7 +584,8 @@ fn a_rewritten_path_space_state_never_crashes() {
             match o.status.code() {
                 Some(0) => {}
                 Some(2) => {
-                    let errors: Vec<&str> = err.lines().filter(|l| !l.starts_with("resume b.pxstate: writes")).collect();
+                    let errors: Vec<&str> =
+                        err.lines().filter(|l| !l.starts_with("resume b.pxstate: writes")).collect();
                     assert!(errors.len() == 1 && errors[0].starts_with("error: "), "{integrator} byte {at}: {err}");
                 }
                 other => panic!("{integrator} byte {at}: exit {other:?}: {err}"),
