@@ -34,7 +34,7 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use super::anisotropic_path::{AnisotropicPath, GuideContext};
-use super::environment::Environment;
+use super::environment_perturbation::EnvironmentPerturbation;
 use super::guide::{GuideCounts, GuideReport, GuideView};
 use super::linear::{GuidedKernel, LinearCaustic, LinearLens, LinearMultiChain};
 use super::settings::EmltSettings;
@@ -164,7 +164,7 @@ impl Emlt {
                     weight: weights[3],
                 }),
                 Box::new(Entry {
-                    strategy: Environment { kernel: s.environment_kernel },
+                    strategy: EnvironmentPerturbation { kernel: s.environment_kernel },
                     kernel: GuideContext { view: view.clone(), counts: counts[4].clone() },
                     weight: weights[4],
                 }),

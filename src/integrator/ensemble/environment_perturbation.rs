@@ -61,11 +61,11 @@ pub struct EnvironmentMove {
 
 /// The environment perturbation (module docs).
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Environment {
+pub struct EnvironmentPerturbation {
     pub kernel: EnvironmentKernel,
 }
 
-impl Environment {
+impl EnvironmentPerturbation {
     /// The weights of Υ's members for `path` and their environment directions.
     fn weighted_directions(guide: &GuideContext, path: &PathState, subset: &[u32]) -> (Rc<Vec<f64>>, Vec<DVec3>) {
         let j = path.len() - 2;
@@ -90,7 +90,7 @@ impl Environment {
     }
 }
 
-impl Strategy for Environment {
+impl Strategy for EnvironmentPerturbation {
     type Kernel = GuideContext;
     type Move = EnvironmentMove;
 
