@@ -8,7 +8,7 @@ use glam::Vec2;
 
 use super::bidirectional::{Bidirectional, Cut, LengthKernel};
 use super::chain::{new_stats, step};
-use super::state::{with_role, PathState};
+use super::path_state::{with_role, PathState};
 use super::strategy::{Entry, Strategy, StrategySet};
 use super::PathContext;
 use crate::camera::Camera;
