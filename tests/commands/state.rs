@@ -511,3 +511,35 @@ fn a_chain_state_without_the_renders_chains_is_refused() {
         assert!(err.to_string().contains("chains are not the render's"), "{name}: {err}");
     }
 }
+
+/// An integrator that renders only whole: it implements `render` (here by a path tracer's) and
+/// none of the session methods, so it says so (`supports_sessions`), and a checkpointed render,
+/// a restored output and a merge of it are refused with `no_state`'s message, the one the CLI
+/// prints for `--checkpoint`, `--shard` and resume of such an integrator.
+#[test]
+fn an_integrator_without_sessions_refuses_them() {
+    struct Whole(Box<dyn Integrator>);
+    impl Integrator for Whole {
+        fn name(&self) -> &'static str {
+            "whole"
+        }
+        fn settings_json(&self) -> serde_json::Value {
+            serde_json::Value::Null
+        }
+        fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
+            self.0.render(scene, job, progress)
+        }
+        fn supports_sessions(&self) -> bool {
+            false
+        }
+    }
+    let whole = Whole(create("pt", &toml::Table::new()).expect("pt"));
+    let scene = scene("cornell-box", 16, 12);
+    let job = RenderJob { budget: Budget::SamplesPerPixel(1), seed: 1, threads: 1 };
+    assert!(whole.render(&scene, &job, &NoProgress).is_ok(), "a whole render works");
+    let message = "the whole integrator cannot be interrupted and resumed, checkpointed or sharded";
+    let refused = whole.render_session(&scene, &job, &NoProgress, &Session::default()).err().expect("refused");
+    assert!(refused.to_string().contains(message), "{refused}");
+    let merged = whole.merge_parts(&[]).expect_err("no merge");
+    assert!(merged.to_string().contains(message), "{merged}");
+}
