@@ -70,14 +70,17 @@ use crate::film::{Accumulator, Image, SplatBuffer};
 use crate::sampling::Rng;
 use crate::stats::Counters;
 
+pub mod bootstrap;
 mod chains;
 mod image;
 pub use chains::{
     boundary_counters, chain_output_of_state, chain_scale, expected_value_splats, layers_to_image, load_units,
-    merge_chain_parts, run_chains, save_units, ChainBootstrap, ChainIntegrator, ChainPart, ChainRender, ChainRun,
-    ChainStats, Tally,
+    merge_chain_parts, run_chains, save_units, ChainBootstrap, ChainEngine, ChainIntegrator, ChainPart, ChainRender,
+    ChainRun, ChainStats, Tally,
 };
-pub use image::{state_film, ImagePart, ImagePlan, ImageRender, ImageRun, Tile, TileSamples, TILE_SIZE};
+pub use image::{
+    state_film, ImageEngine, ImageIntegrator, ImagePart, ImagePlan, ImageRender, ImageRun, Tile, TileSamples, TILE_SIZE,
+};
 
 /// A pass should hold at least this many pixel samples, so that the per-pass synchronisation
 /// costs nothing measurable even for tiny images.

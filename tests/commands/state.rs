@@ -185,7 +185,7 @@ fn merged_shards_equal_the_unsharded_render_within_rounding() {
                 .collect();
             // pmlt's merged per-slot statistics once made its shard bytes depend on the threads
             // (an f64 sum of acceptance probabilities, added slot by slot): this check failed for
-            // it then, and passes since that sum is exact (`pss::stats::ProbabilitySum`).
+            // it then, and passes since that sum is exact (`pss::mlt_stats::ProbabilitySum`).
             if n == 2 {
                 // A shard's bytes depend on its units only, not on the threads that rendered it.
                 let one_thread = RenderJob { threads: 1, ..job.clone() };
