@@ -3,7 +3,7 @@
 //!
 //! For the reference pages (README.md, docs/architecture.md and the other pages of docs/ that
 //! describe the code) and the lab notebook's index:
-//! - every **source path** a page names in backticks (`src/integrator/pt.rs`, `pss/inverse.rs`,
+//! - every **source path** a page names in backticks (`src/integrator/pt/mod.rs`, `pss/inverse.rs`,
 //!   `scripts/fuzz.sh`, `tests/common/agreement.rs::assert_shares_agree`) exists in the repository:
 //!   a path under one of the repository's top-level directories exactly, a bare `*.rs` path as the
 //!   tail of a file under `src/`, `tests/` or `examples/`;
@@ -674,7 +674,7 @@ fn test_repo() -> Repo {
 #[test]
 fn the_checker_rejects_a_page_with_a_bogus_path_module_flag_or_link() {
     let repo = test_repo();
-    let good = "# Title\n\n## `render`\n\nSee `src/integrator/pt.rs`, `pss/inverse.rs`, \
+    let good = "# Title\n\n## `render`\n\nSee `src/integrator/pt/mod.rs`, `pss/inverse.rs`, \
                 `tests/common/agreement.rs::assert_shares_agree`, `integrator::path_space::retrace`, \
                 `plexus::bench::run`, `driver::bootstrap::BATCH` and `Mlt::propose_jump`; `--spp 16`.\n\n\
                 ```\nplexus render scene.toml --spp 4 -o x.exr | cargo test --release\n```\n\n\
