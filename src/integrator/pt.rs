@@ -20,15 +20,15 @@
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
-use super::driver::{ImagePart, ImageRender, ImageRun, Slot};
-use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
+use super::driver::{ImageEngine, ImageIntegrator, ImageRender, ImageRun, Slot};
+use super::{settings_from_table, Plugin, Progress, RenderError, RenderJob};
 use crate::geometry::{Hit, Ray, SurfaceInteraction};
 use crate::light::LiPoint;
 use crate::material::{Bsdf, BsdfSample, TransportMode};
 use crate::sampling::{PixelSampler, SamplerKind, SobolStream, UniformSource};
 use crate::scene::Scene;
 use crate::spectrum::{is_finite, Rgb};
-use crate::state::{RenderState, Session};
+use crate::state::Session;
 use crate::stats::Counters;
 
 /// How the two direct-lighting techniques are combined.
@@ -604,32 +604,16 @@ pub fn russian_roulette(beta: Rgb, eta_scale: f32, scale: f32, u: f32) -> Option
     (u < q).then(|| beta / q)
 }
 
-impl Integrator for PathTracer {
-    fn name(&self) -> &'static str {
+impl Plugin for PathTracer {
+    type Engine = ImageEngine;
+    type Settings = PtSettings;
+
+    fn plugin_name(&self) -> &'static str {
         "pt"
     }
 
-    fn settings_json(&self) -> serde_json::Value {
-        serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
-    }
-
-    fn run_session(
-        &self,
-        scene: &Scene,
-        job: &RenderJob,
-        progress: &dyn Progress,
-        session: &Session,
-        save: bool,
-    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
-        self.render_run_session(scene, job, progress, *session, save).map(ImageRun::into_session)
-    }
-
-    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
-        ImagePart::output_of_state(state)
-    }
-
-    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
-        ImagePart::merge(parts)
+    fn settings(&self) -> &PtSettings {
+        &self.settings
     }
 }
 
@@ -638,10 +622,12 @@ impl PathTracer {
     pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<ImageRun, RenderError> {
         self.render_run_session(scene, job, progress, Session::default(), false)
     }
+}
 
+impl ImageIntegrator for PathTracer {
     /// [`Self::render_run`] under a session (`crate::state`): resumed, sharded, stopped early;
     /// with `save`, `ImageRun::state` holds the state reached.
-    pub fn render_run_session(
+    fn render_run_session(
         &self,
         scene: &Scene,
         job: &RenderJob,

@@ -369,7 +369,7 @@ fn mlt_small_step_setting_is_validated() {
 #[test]
 fn mlt_film_is_independent_of_the_thread_count() {
     use plexus::integrator::pss::mlt::Mlt;
-    use plexus::integrator::pss::settings::MltVariant;
+    use plexus::integrator::pss::mlt_settings::MltVariant;
     for (variant, depths, layers, direct_emission, scene_name, mutations_per_pixel) in [
         (MltVariant::Pssmlt, 1, 2, "camera", "cornell-box", 8),
         (MltVariant::Pssmlt, 1, 1, "chains", "cornell-box", 8),

@@ -10,7 +10,7 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-use super::settings::EmltSettings;
+use super::emlt_settings::EmltSettings;
 use super::similarity::{place, places_similarity};
 use super::tree::EnsembleTree;
 use crate::integrator::path_space::PathState;

@@ -30,7 +30,7 @@ use glam::UVec2;
 use super::{Mlt, SlotState};
 use crate::film::{Accumulator, SplatBuffer};
 use crate::integrator::bdpt::{evaluate_technique, generate_camera_subpath, BdptContext, FilmRegion};
-use crate::integrator::pss::settings::{DirectEmission, MltVariant};
+use crate::integrator::pss::mlt_settings::{DirectEmission, MltVariant};
 use crate::sampling::PixelSampler;
 use crate::spectrum::is_finite;
 use crate::stats::Counters;
