@@ -12,7 +12,7 @@
 //! its fixed ensemble that the guided strategies read: Y's vertex places and the tree). Every
 //! product is checked; an overflow is itself a refusal.
 
-use super::pss::mlt_settings::{MltSettings, MltVariant};
+use super::pss::mlt_settings::{DirectEmission, MltSettings, MltVariant};
 use super::RenderError;
 use crate::job::memory::{add, mul, RenderMemory, SceneMemory};
 
@@ -72,8 +72,10 @@ pub fn mlt_memory(
         MltVariant::Pssmlt => 1,
         MltVariant::Mmlt | MltVariant::Rjmlt => settings.max_depth as u64 + 1,
     };
-    // MLT's per-depth images are layers of one W × (H·D) film (`driver` docs).
-    let (film, pass_buffers) = film_and_pass(width, height, depths)?;
+    // MLT's per-depth images are layers of one W × (H·D) film (`driver` docs); pssmlt's camera
+    // estimator of depth 0 has a layer of its own.
+    let direct_layer = (variant == MltVariant::Pssmlt && settings.direct_emission == DirectEmission::Camera) as u64;
+    let (film, pass_buffers) = film_and_pass(width, height, depths + direct_layer)?;
     let bootstrap = mul(mul(settings.bootstrap, depths, "the bootstrap")?, BOOTSTRAP_PATH_BYTES, "the bootstrap")?;
     let subchain = mul(settings.max_depth as u64 + 2, SUBCHAIN_BYTES_PER_VERTEX, "a sub-chain")?;
     let chains = mul(mul(settings.chains, depths, "the chains")?, subchain, "the chains")?;

@@ -85,10 +85,20 @@ const RJMLT_MUTATIONS_PER_PIXEL: u64 = 3072;
 /// drifts (its ~4,000 mutations per chain at 30% large steps already showed the chain's own
 /// distribution), and the brightness test alone (z = −1.44) would have caught neither.
 fn mlt_agrees_with_pt(name: &str, method: &str, mutations_per_pixel: u64) {
+    mlt_agrees_with_pt_with(name, method, "", mutations_per_pixel);
+}
+
+/// `mlt_agrees_with_pt` with `extra` settings after `MLT_PARAMS`.
+fn mlt_agrees_with_pt_with(name: &str, method: &str, extra: &str, mutations_per_pixel: u64) {
     let scene = scene(name, 32);
     let reference = pt_renders(name);
-    let renders = render_regions(&scene, method, MLT_PARAMS, mutations_per_pixel, 3, RENDERS);
-    let what = format!("{method} vs pt on {name}");
+    let params = format!("{MLT_PARAMS}\n{extra}");
+    let renders = render_regions(&scene, method, &params, mutations_per_pixel, 3, RENDERS);
+    let what = if extra.is_empty() {
+        format!("{method} vs pt on {name}")
+    } else {
+        format!("{method} ({extra}) vs pt on {name}")
+    };
     assert_shares_agree(&what, &renders, reference);
     assert_brightness_agrees(&what, &renders, reference);
 }
@@ -121,6 +131,35 @@ fn rjmlt_agrees_with_pt_on_cornell_box() {
 #[test]
 fn rjmlt_agrees_with_pt_on_cornell_glossy() {
     mlt_agrees_with_pt("cornell-glossy", "rjmlt", RJMLT_MUTATIONS_PER_PIXEL);
+}
+
+/// Where depth 0 is rendered (`direct_emission`, docs/mlt.md "Depth 0 outside the chains"): the six
+/// tests above run the default, the camera estimator beside the chains (which carry depths ≥ 1);
+/// these run the papers' configuration, depth 0 in the chains, on the Cornell box, whose lamp is
+/// seen directly in the top row of regions and carries about half of the image's light. Bounds
+/// and power checks are `mlt_agrees_with_pt`'s: shares |z| < 5 per region, with power for a 10%
+/// error of a region's share; brightness with power for a 5% error.
+///
+/// **Wrong variants** (measured on the default's test, `mmlt_agrees_with_pt_on_cornell_box` and
+/// `pssmlt_agrees_with_pt_on_cornell_box`, then reverted): depth 0 counted twice (PSSMLT's state
+/// keeping its depth-0 technique while the camera estimator renders depth 0 as well): shares
+/// worst |z| = 44.4, the lamp's regions 1.23× their share; the camera estimator's depth-0 sums
+/// added without their weight 1/samples (MMLT): worst |z| = 1862. Measured as passing: camera,
+/// MMLT worst |z| = 2.44 (image mean z = +0.48), PSSMLT 2.40 (z = −0.05); chains, MMLT 2.19
+/// (z = −2.36), PSSMLT 0.72 (z = −1.04).
+#[test]
+fn pssmlt_with_depth_0_in_the_chains_agrees_with_pt_on_cornell_box() {
+    mlt_agrees_with_pt_with("cornell-box", "pssmlt", "direct_emission = \"chains\"", PSSMLT_MUTATIONS_PER_PIXEL);
+}
+
+#[test]
+fn mmlt_with_depth_0_in_the_chains_agrees_with_pt_on_cornell_box() {
+    mlt_agrees_with_pt_with("cornell-box", "mmlt", "direct_emission = \"chains\"", MMLT_MUTATIONS_PER_PIXEL);
+}
+
+#[test]
+fn rjmlt_with_depth_0_in_the_chains_agrees_with_pt_on_cornell_box() {
+    mlt_agrees_with_pt_with("cornell-box", "rjmlt", "direct_emission = \"chains\"", RJMLT_MUTATIONS_PER_PIXEL);
 }
 
 /// RJMLT's technique jumps (Bitterli et al. 2017, Sec. 6.2) in the renderer: jumps to another
@@ -276,7 +315,8 @@ fn mlt_settings_are_validated() {
 #[test]
 fn mlt_renders_depths_the_bootstrap_missed() {
     let scene = scene("cornell-box", 32);
-    let params = "max_depth = 8\nbootstrap = 20\nchains = 64";
+    // Depth 0 in the chains: with the camera estimator (the default) depth 0 has no chains to miss.
+    let params = "max_depth = 8\nbootstrap = 20\nchains = 64\ndirect_emission = \"chains\"";
     for method in ["mmlt", "rjmlt"] {
         let (_, _, stats) = render(&scene, method, params, 16, 1);
         let depth0 = &stats["per_depth"][0];
@@ -316,7 +356,9 @@ fn mlt_small_step_setting_is_validated() {
 /// chain's splats are recorded in its unit's buffer and applied in unit order; b_d pools the
 /// units' large steps in unit order), hence the same image, counters and b_d. 16×16 films,
 /// 6 chains: PSSMLT and MMLT on the Cornell box at 8 mutations per pixel, RJMLT on the glossy
-/// box at 256; 0.2 s in all (2 loaded cores).
+/// box at 256; with depth 0 in the chains and by the camera estimator (its samples are the
+/// chain units', in the same buffers: PSSMLT then has a second film layer for them); 0.4 s in all
+/// (2 loaded cores).
 ///
 /// Measured on the code before (per-depth films in per-slot state, merged in slot order), with the
 /// same settings: the film sums of 1 and 3 threads differed at 23 of 256 pixels for PSSMLT and at
@@ -328,12 +370,17 @@ fn mlt_small_step_setting_is_validated() {
 fn mlt_film_is_independent_of_the_thread_count() {
     use plexus::integrator::pss::mlt::Mlt;
     use plexus::integrator::pss::mlt_settings::MltVariant;
-    let params: toml::Table = toml::from_str("max_depth = 5\nbootstrap = 1000\nchains = 6").expect("test parameters");
-    for (variant, depths, scene_name, mutations_per_pixel) in [
-        (MltVariant::Pssmlt, 1, "cornell-box", 8),
-        (MltVariant::Mmlt, 6, "cornell-box", 8),
-        (MltVariant::Rjmlt, 6, "cornell-glossy", 256),
+    for (variant, depths, layers, direct_emission, scene_name, mutations_per_pixel) in [
+        (MltVariant::Pssmlt, 1, 2, "camera", "cornell-box", 8),
+        (MltVariant::Pssmlt, 1, 1, "chains", "cornell-box", 8),
+        (MltVariant::Mmlt, 6, 6, "camera", "cornell-box", 8),
+        (MltVariant::Mmlt, 6, 6, "chains", "cornell-box", 8),
+        (MltVariant::Rjmlt, 6, 6, "camera", "cornell-glossy", 256),
+        (MltVariant::Rjmlt, 6, 6, "chains", "cornell-glossy", 256),
     ] {
+        let what = format!("{variant:?} with depth 0 by the {direct_emission}");
+        let params = format!("max_depth = 5\nbootstrap = 1000\nchains = 6\ndirect_emission = \"{direct_emission}\"");
+        let params: toml::Table = toml::from_str(&params).expect("test parameters");
         let scene = scene(scene_name, 16);
         let mlt = Mlt::from_params(variant, &params).expect("settings");
         let run = |threads: usize| {
@@ -341,22 +388,22 @@ fn mlt_film_is_independent_of_the_thread_count() {
             mlt.render_run(&scene, &job, &NoProgress).expect("render")
         };
         let (one, three) = (run(1), run(3));
-        assert_eq!((one.film.width, one.film.height), (16, 16 * depths), "{variant:?}: one layer per depth");
+        assert_eq!((one.film.width, one.film.height), (16, 16 * layers), "{what}: one layer per depth");
         let sums = |film: &plexus::film::Accumulator| -> Vec<[u64; 3]> {
             film.sums().iter().map(|s| s.map(f64::to_bits)).collect()
         };
         let differing = sums(&one.film).iter().zip(sums(&three.film)).filter(|(p, q)| **p != *q).count();
-        println!("{variant:?}: film sums differ at {differing} of {} pixels between 1 and 3 threads", 256 * depths);
-        assert_eq!(differing, 0, "{variant:?}: the film depends on the thread count");
-        assert!(one.film.sums().iter().any(|s| s[0] > 0.0), "{variant:?}: an empty film tests nothing");
+        println!("{what}: film sums differ at {differing} of {} pixels between 1 and 3 threads", 256 * layers);
+        assert_eq!(differing, 0, "{what}: the film depends on the thread count");
+        assert!(one.film.sums().iter().any(|s| s[0] > 0.0), "{what}: an empty film tests nothing");
         let bits =
             |img: &Image| -> Vec<[u32; 3]> { img.pixels.iter().map(|p| p.to_array().map(f32::to_bits)).collect() };
-        assert_eq!(bits(&one.output.image), bits(&three.output.image), "{variant:?}");
+        assert_eq!(bits(&one.output.image), bits(&three.output.image), "{what}");
         let (c1, c3) = (&one.output.counters, &three.output.counters);
-        assert_eq!((c1.rays, c1.shadow_rays, c1.samples), (c3.rays, c3.shadow_rays, c3.samples), "{variant:?}");
+        assert_eq!((c1.rays, c1.shadow_rays, c1.samples), (c3.rays, c3.shadow_rays, c3.samples), "{what}");
         let b = |out: &plexus::integrator::RenderOutput| -> Vec<serde_json::Value> {
             (0..depths).map(|d| out.extra_stats["per_depth"][d]["b"].clone()).collect()
         };
-        assert_eq!(b(&one.output), b(&three.output), "{variant:?}: b_d");
+        assert_eq!(b(&one.output), b(&three.output), "{what}: b_d");
     }
 }

@@ -29,15 +29,19 @@ fn scene(name: &str, width: u32, height: u32) -> Scene {
 /// The integrators of the tests, on scenes where each has light to find, with a sample budget of
 /// three or more passes: pt, BDPT and light tracing at 64×48 take 22 samples per pixel a pass
 /// (2^16 pixel samples), so 70 are four passes, the last of 4 (a shard's share must count it
-/// right); MLT (pmlt too) takes about one mutation per pixel a pass.
+/// right); MLT (pmlt too) takes about one mutation per pixel a pass. PSSMLT, MMLT and RJMLT run
+/// their default, depth 0 by the camera estimator (its film layer and each chain's count of its
+/// passes are part of the state), and MMLT once more with depth 0 in the chains.
 fn cases() -> Vec<(&'static str, &'static str, &'static str, u64)> {
     let mlt = "max_depth = 4\nbootstrap = 2000\nchains = 24";
+    let mlt_depth_0_in_chains = "max_depth = 4\nbootstrap = 2000\nchains = 24\ndirect_emission = \"chains\"";
     vec![
         ("pt", "cornell-box", "max_depth = 6", 70),
         ("bdpt", "cornell-box", "max_depth = 4", 70),
         ("light", "cornell-box", "max_depth = 4", 70),
         ("pssmlt", "cornell-box", mlt, 4),
         ("mmlt", "cornell-box", mlt, 4),
+        ("mmlt", "cornell-box", mlt_depth_0_in_chains, 4),
         ("rjmlt", "cornell-glossy", mlt, 6),
         ("pmlt", "cornell-box", mlt, 4),
     ]

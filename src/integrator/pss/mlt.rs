@@ -32,6 +32,11 @@
 //! reproduces x̄. A path that cannot be inverted, or whose inverse does not reproduce it, is
 //! rejected and counted.
 //!
+//! # Depth 0 outside the chains
+//! With `direct_emission = "camera"` (the default) depth 0, the emitters seen directly, is not a
+//! depth of the chains: a stratified camera estimator renders it beside them, one sample per pixel
+//! and pass, each pixel by the chain unit that owns it, and the chains carry depths ≥ 1 (`direct`).
+//!
 //! # Films and threads
 //! The depths' images are layers of the driver's one film: depth d is rows [d·H, (d+1)·H) of a
 //! W × (H·D) film (one layer for PSSMLT), written through the chain unit's `SplatBuffer`, which
@@ -39,7 +44,8 @@
 //! large-step totals summed over the units in unit order (b_d) and the depths' iteration counts
 //! (integers), at output and for previews alike; each chain's depth choice reads its own totals
 //! (`depth_choice`), so chains never depend on each other. So the image, bit for bit, depends on the
-//! seed and the chain count, not on the thread count. The technique count layers (a debug output,
+//! seed and the chain count, not on the thread count. The camera estimator's depth-0 samples are
+//! in depth 0's layer (PSSMLT: a second layer), written through the same buffers. The technique count layers (a debug output,
 //! off by default) stay per slot, merged in slot order: they hold integer counts (sums of 1.0,
 //! exact in f64 below 2^53), which any merge order gives bit for bit.
 //! The cost is memory: a pass (about one mutation per pixel) holds all its splats until it ends,
@@ -58,7 +64,7 @@ use serde::{Deserialize, Serialize};
 use super::inverse::{invert_technique, same_path, InversionFailure};
 use super::jump::{jump_acceptance, JumpSide};
 use super::mlt_settings::{MltSettings, MltVariant};
-use super::mlt_stats::{MltStats, MoveKind};
+use super::mlt_stats::{DirectEmissionStats, MltStats, MoveKind};
 use super::sampler::{MutationSettings, PssSampler};
 use crate::film::{Accumulator, Image, SplatBuffer};
 use crate::integrator::bdpt::path::full_path;
@@ -76,6 +82,7 @@ use crate::stats::{AcceptanceCount, Counters};
 
 mod bootstrap_sample;
 mod depth_choice;
+mod direct;
 mod mlt_render;
 use bootstrap_sample::{technique_target, PrimarySource};
 use depth_choice::{BEstimate, LargeStepTotals};
@@ -158,6 +165,10 @@ struct PathState {
     target: f32,
     /// MMLT, RJMLT: the technique (light vertices) of the state.
     s: usize,
+    /// PSSMLT with the camera estimator of depth 0: the luminance of the depth-0 contribution the
+    /// state left out (so that the bootstrap sees whether emitters are in view). Not saved.
+    #[serde(skip)]
+    direct_target: f32,
     /// RJMLT: the complete path (camera first) and every technique's MIS weight for it (index =
     /// light vertices), for the next technique jump. Empty for a zero-contribution state.
     path: Vec<Vertex>,
@@ -198,8 +209,12 @@ pub struct ChainUnit {
     /// Per depth: sum and count of this unit's large-step targets so far, for the depth choice.
     large_steps: LargeStepTotals,
     /// Indexed by depth for MMLT and RJMLT (None only where the depth is never chosen:
-    /// bootstrap b_d = 0 without progressive b); one entry for PSSMLT.
+    /// bootstrap b_d = 0 without progressive b, or depth 0 with the camera estimator); one entry
+    /// for PSSMLT.
     subchains: Vec<Option<SubChain>>,
+    /// With the camera estimator of depth 0 (`direct_emission = "camera"`): the passes whose
+    /// depth-0 samples this unit has rendered, one per pixel of its share each (`direct`).
+    direct_passes: u64,
 }
 
 /// Per-slot scratch buffers and statistics. The image is not here: it is in the driver's film,
@@ -282,7 +297,12 @@ impl Mlt {
                 generate_light_subpath(ctx, sampler, max_depth + 1, &mut slot.light, counters);
                 sampler.start_stream(CONNECTION_STREAM);
                 let splats = &mut state.splats;
-                state.paths_evaluated = techniques_of_subpaths(slot.light.len(), slot.camera.len(), max_depth);
+                let direct_target = &mut state.direct_target;
+                // With the camera estimator of depth 0 the state's techniques are those of depths
+                // ≥ 1: s + t = 2 (s = 0, t = 2, the emitter seen directly) is left out.
+                let skip_direct = self.direct_from_camera();
+                state.paths_evaluated = techniques_of_subpaths(slot.light.len(), slot.camera.len(), max_depth)
+                    - (skip_direct && slot.camera.len() >= 2) as u32;
                 connect_all(
                     ctx,
                     &slot.light,
@@ -294,7 +314,9 @@ impl Mlt {
                     counters,
                     |c, counters| {
                         let value = c.weighted();
-                        if is_finite(value) {
+                        if skip_direct && c.s + c.t == 2 {
+                            *direct_target += luminance(value).max(0.0);
+                        } else if is_finite(value) {
                             splats.push(Splat { raster: c.raster, value });
                         } else {
                             counters.nonfinite_dropped += 1;
@@ -363,42 +385,47 @@ impl Mlt {
 
     fn new_slot(&self, width: usize, height: usize) -> SlotState {
         let depths = self.depth_count();
+        let mut stats = MltStats::new(
+            &(0..depths).map(|d| self.technique_count(d)).collect::<Vec<_>>(),
+            self.variant != MltVariant::Pssmlt,
+            self.variant == MltVariant::Mmlt,
+            self.variant == MltVariant::Rjmlt,
+        );
+        stats.direct_emission = self.direct_from_camera().then(DirectEmissionStats::default);
         SlotState {
             camera: Vec::new(),
             light: Vec::new(),
             scratch: ConnectScratch::default(),
             count_films: (self.settings.technique_count_layers && self.variant != MltVariant::Pssmlt)
                 .then(|| (0..depths).map(|d| vec![Accumulator::new(width, height); self.technique_count(d)]).collect()),
-            stats: MltStats::new(
-                &(0..depths).map(|d| self.technique_count(d)).collect::<Vec<_>>(),
-                self.variant != MltVariant::Pssmlt,
-                self.variant == MltVariant::Mmlt,
-                self.variant == MltVariant::Rjmlt,
-            ),
+            stats,
         }
     }
 
     /// The image of the driver's stacked per-depth film (module docs, "Normalisation"): depth d
     /// (rows [d·H, (d+1)·H)) scaled by n_d · b_d · P / (iterations of depth d), with b_d from the
     /// bootstrap and, with `progressive_b`, the large steps so far (`large_steps`, pooled in unit
-    /// order; `BEstimate::pooled`). Returns the b_d used. Serves the final image and the previews during the render
-    /// alike.
+    /// order; `BEstimate::pooled`); with the camera estimator of depth 0, its layer's per-pixel
+    /// means added (`direct`), each pixel's samples those of its unit in `units`. Returns the b_d
+    /// used (depth 0's, with the camera estimator, the mean luminance of its image over n_0 = 1).
+    /// Serves the final image and the previews during the render alike.
     fn normalised_image(
         &self,
         film: &Accumulator,
         large_steps: &LargeStepTotals,
         iterations: &[u64],
         bootstrap: &Bootstrap,
+        units: &[ChainUnit],
     ) -> (Image, Vec<f64>) {
         let depths = self.depth_count();
-        let (width, height) = (film.width, film.height / depths);
+        let (width, height) = (film.width, film.height / self.film_layers());
         let pixels = width * height;
         let mut total = vec![[0.0f64; 3]; pixels];
         let mut b = Vec::with_capacity(depths);
         for d in 0..depths {
             let b_d = self.b_estimate(&bootstrap.estimates[d], large_steps[d]);
             b.push(b_d);
-            if iterations[d] == 0 {
+            if iterations[d] == 0 || !self.chains_render(d) {
                 continue;
             }
             // n_d · b_d is depth d's normalisation constant (its n_d techniques share the film).
@@ -408,6 +435,20 @@ impl Mlt {
                 t[0] += s[0] * scale;
                 t[1] += s[1] * scale;
                 t[2] += s[2] * scale;
+            }
+        }
+        if let Some(layer) = self.direct_layer() {
+            let counts = self.direct_counts(pixels, units.iter().map(|u| (u.index, u.direct_passes)));
+            let direct = Self::direct_image_sums(film, layer, &counts);
+            let mut luminance_sum = 0.0f64;
+            for (t, s) in total.iter_mut().zip(&direct) {
+                t[0] += s[0];
+                t[1] += s[1];
+                t[2] += s[2];
+                luminance_sum += luminance(Rgb::new(s[0] as f32, s[1] as f32, s[2] as f32)) as f64;
+            }
+            if self.variant != MltVariant::Pssmlt {
+                b[0] = luminance_sum / pixels.max(1) as f64;
             }
         }
         let pixels = total.iter().map(|s| Rgb::new(s[0] as f32, s[1] as f32, s[2] as f32)).collect();
@@ -537,7 +578,7 @@ impl Mlt {
             return;
         }
         let w = w / state.target;
-        let layer_height = film.height / self.depth_count();
+        let layer_height = film.height / self.film_layers();
         for sp in &state.splats {
             // A target near the smallest f32 can make the expected-value weight overflow: no
             // non-finite value may reach the film (the splat's own value was checked when made).

@@ -297,6 +297,44 @@ impl StrategyStats {
     }
 }
 
+/// The camera estimator of depth 0 (`direct_emission = "camera"`, `pss::mlt::direct`): its samples
+/// and what it cost beside the chains.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct DirectEmissionStats {
+    /// Camera samples, one ray each (and the closest-hit queries they made).
+    pub camera_samples: u64,
+    pub rays: u64,
+    /// Derived by the render: camera samples per pixel.
+    pub samples_per_pixel: f64,
+    /// Thread-seconds of the passes spent in the camera estimator and in the chains' mutations.
+    /// Zero in a shard's state, whose bytes must not depend on timing.
+    pub seconds: f64,
+    pub chain_seconds: f64,
+    /// Derived by the render: the camera estimator's share of the passes' thread time, and of all
+    /// the render's closest-hit queries (bootstrap included): the share of the budget spent outside
+    /// the chains, by time and by rays.
+    pub share_of_pass_time: Option<f64>,
+    pub share_of_rays: Option<f64>,
+}
+
+impl DirectEmissionStats {
+    fn merge(&mut self, o: &DirectEmissionStats) {
+        self.camera_samples += o.camera_samples;
+        self.rays += o.rays;
+        self.seconds += o.seconds;
+        self.chain_seconds += o.chain_seconds;
+    }
+
+    /// Derives the per-pixel rate and the shares, given the film's `pixels` and the render's
+    /// closest-hit queries `all_rays`.
+    pub fn finish(&mut self, pixels: u64, all_rays: u64) {
+        self.samples_per_pixel = self.camera_samples as f64 / pixels.max(1) as f64;
+        let pass_time = self.seconds + self.chain_seconds;
+        self.share_of_pass_time = (pass_time > 0.0).then(|| self.seconds / pass_time);
+        self.share_of_rays = ratio(self.rays, all_rays);
+    }
+}
+
 /// Everything a PSSMLT, MMLT or RJMLT render reports besides the image and the shared counters.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct MltStats {
@@ -328,6 +366,8 @@ pub struct MltStats {
     /// whose `moves` are then zero: a path-space proposal is neither a large nor a small step).
     pub strategies: Option<Vec<StrategyStats>>,
     pub per_depth: Vec<DepthStats>,
+    /// PSSMLT, MMLT, RJMLT with `direct_emission = "camera"`: the camera estimator of depth 0.
+    pub direct_emission: Option<DirectEmissionStats>,
     pub warnings: Vec<String>,
 }
 
@@ -366,6 +406,7 @@ impl MltStats {
         self.moves.small.merge(&o.moves.small);
         merge_option(&mut self.moves.jump, &o.moves.jump, MoveStats::merge);
         merge_option(&mut self.jumps, &o.jumps, JumpStats::merge);
+        merge_option(&mut self.direct_emission, &o.direct_emission, DirectEmissionStats::merge);
         merge_option(&mut self.strategies, &o.strategies, |a, b| {
             for (x, y) in a.iter_mut().zip(b) {
                 x.merge(y);

@@ -174,7 +174,8 @@ pub(super) fn technique_target(c: &TechniqueSample, counters: &mut Counters) -> 
 
 impl Mlt {
     /// Bootstrap sample `index`: pushes one target per depth slot to `out`. PSSMLT: the state's
-    /// target (all techniques of its subpaths, Alg. 1). MMLT and RJMLT: per depth d the full BDPT
+    /// target (all techniques of its subpaths, Alg. 1; with the camera estimator of depth 0, those
+    /// of depths ≥ 1, and then the luminance of the depth-0 technique it left out). MMLT and RJMLT: per depth d the full BDPT
     /// sample's B_d = (1/n_d)·Σ_s lum(w_{s,t} C_{s,t}) (module docs), whose mean is b_d, and then
     /// per depth Q_d = (1/n_d)·Σ_s lum(w_{s,t} C_{s,t})², whose mean is the second moment of one
     /// large step's target (s uniform, ū uniform): what pooling b_d with the large steps weighs
@@ -190,7 +191,12 @@ impl Mlt {
     ) {
         let mut source = BootstrapSource::new(self.settings.bootstrap_sampler, seed, index, false);
         if self.variant == MltVariant::Pssmlt {
-            out.push(self.evaluate(ctx, 0, &mut source, None, slot, counters).target);
+            let state = self.evaluate(ctx, 0, &mut source, None, slot, counters);
+            out.push(state.target);
+            if self.direct_from_camera() {
+                // Whether emitters are in view, which the state's target now leaves out.
+                out.push(state.direct_target);
+            }
             return;
         }
         let depths = self.depth_count();

@@ -149,11 +149,15 @@ impl Mlt {
     /// in the whole render, and no pass waits for the others' totals. (Render-wide totals would
     /// move effort a little sooner; the estimator does not depend on p(d).)
     /// Depths that cannot be recovered (bootstrap b_d = 0 without progressive b: their image is
-    /// scaled by b_d = 0) are never chosen.
+    /// scaled by b_d = 0) are never chosen, nor depth 0 when the camera estimator renders it.
     pub(super) fn depth_choice(&self, bootstrap: &Bootstrap, own: &LargeStepTotals) -> Distribution1D {
         let depths = self.depth_count();
-        let b: Vec<f64> = (0..depths).map(|d| self.b_estimate(&bootstrap.estimates[d], own[d])).collect();
-        let recoverable = |d: usize| self.settings.progressive_b || bootstrap.found[d];
+        // Depth 0 with the camera estimator is not the chains' (`chains_render`): b_0 leaves the
+        // choice, which then spreads over depths ≥ 1 only.
+        let b: Vec<f64> = (0..depths)
+            .map(|d| if self.chains_render(d) { self.b_estimate(&bootstrap.estimates[d], own[d]) } else { 0.0 })
+            .collect();
+        let recoverable = |d: usize| self.chains_render(d) && (self.settings.progressive_b || bootstrap.found[d]);
         let recoverable_depths = (0..depths).filter(|&d| recoverable(d)).count().max(1) as f64;
         let total: f64 = b.iter().sum();
         let weights: Vec<f32> = (0..depths)

@@ -8,6 +8,7 @@
 //! themselves (sampler, current path, random stream, large-step totals).
 
 use std::sync::{Arc, OnceLock};
+use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
@@ -75,6 +76,13 @@ pub struct MltTally {
 }
 
 impl ChainStats for MltTally {
+    fn clear_times(&mut self) {
+        if let Some(direct) = self.stats.direct_emission.as_mut() {
+            direct.seconds = 0.0;
+            direct.chain_seconds = 0.0;
+        }
+    }
+
     fn absorb(&mut self, other: &MltTally) {
         self.stats.merge(&other.stats);
         if let (Some(a), Some(b)) = (self.count_films.as_mut(), other.count_films.as_ref()) {
@@ -102,7 +110,7 @@ impl ChainIntegrator for Mlt {
         boot: &BootstrapPart,
         tally: Tally,
     ) -> Result<RenderOutput, RenderError> {
-        if !film.height.is_multiple_of(self.depth_count()) {
+        if !film.height.is_multiple_of(self.film_layers()) {
             return Err(StateError::Mismatch("the state's film does not hold one layer per depth".into()).into());
         }
         let mut slot = self.new_slot(0, 0);
@@ -216,8 +224,9 @@ impl Mlt {
         time_budget: Option<f64>,
     ) -> Result<(BootstrapPart, Counters, Option<StartDistributions>), RenderError> {
         let depths = self.depth_count();
-        // MMLT and RJMLT push B_d and then Q_d per depth (`bootstrap_sample`).
-        let slots = if depths > 1 { 2 * depths } else { 1 };
+        // MMLT and RJMLT push B_d and then Q_d per depth (`bootstrap_sample`); PSSMLT its target
+        // and, with the camera estimator of depth 0, the depth-0 luminance its state left out.
+        let slots = if depths > 1 { 2 * depths } else { 1 + self.direct_from_camera() as usize };
         let boot = run_shared_bootstrap(
             driver,
             progress,
@@ -233,6 +242,14 @@ impl Mlt {
         let mut targets = boot.targets;
         let mut sums = boot.sums;
         let mut sums_sq = boot.sums_sq;
+        // With the camera estimator: whether the bootstrap saw an emitter directly (depth 0), so
+        // that a render whose chains find no light still renders the emitters in view.
+        let direct_seen =
+            self.direct_from_camera() && sums.get(if depths > 1 { 0 } else { 1 }).is_some_and(|&s| s > 0.0);
+        if depths == 1 {
+            sums.truncate(1);
+            sums_sq.truncate(1);
+        }
         let large_step_sums_sq = if depths > 1 { sums.split_off(depths) } else { sums_sq.clone() };
         sums_sq.truncate(depths);
         targets.truncate(depths);
@@ -249,9 +266,10 @@ impl Mlt {
         } else {
             0.0
         };
-        // Depth 0's replicates, as many camera rays each as the bootstrap took samples.
+        // Depth 0's replicates, as many camera rays each as the bootstrap took samples (not with
+        // the camera estimator, which renders depth 0 without b_0).
         let (mut direct_sums, mut direct_nonzero) = (Vec::new(), 0);
-        if depths > 1 {
+        if depths > 1 && !self.direct_from_camera() {
             let replicates = run_bootstrap(
                 driver,
                 progress,
@@ -279,9 +297,9 @@ impl Mlt {
             seconds,
             warnings,
         };
-        let b_total: f64 = sums.iter().map(|s| s / n_boot as f64).sum();
+        let b_total: f64 = (0..depths).filter(|&d| self.chains_render(d)).map(|d| sums[d] / n_boot as f64).sum();
         let mut warnings: Vec<String> = Vec::new();
-        if !(b_total > 0.0) {
+        if !(b_total > 0.0) && !direct_seen {
             warnings.push(format!(
                 "no bootstrap path ({} per depth) carried light to the camera: the image is black. Check that \
                  emitters are visible from the camera's surroundings, or raise `bootstrap`.",
@@ -289,10 +307,19 @@ impl Mlt {
             ));
             return Ok((part(warnings), counters, None));
         }
+        if !(b_total > 0.0) {
+            // Emitters in view but no path of depth ≥ 1 found: the camera estimator renders the
+            // emitters; the chains search (with progressive b) or stay idle.
+            warnings.push(format!(
+                "no bootstrap path ({n_boot} per depth) of depth 1 or more carried light to the camera: only the \
+                 emitters seen directly are certain to be rendered. Raise `bootstrap`{}.",
+                if self.settings.progressive_b { "" } else { " or enable `progressive_b`" }
+            ));
+        }
         // Without progressive b a depth's b_d stays the bootstrap's, so a depth it missed cannot
         // be recovered and is not chosen (`depth_choice`); a warning says so.
         if depths > 1 && !self.settings.progressive_b {
-            let missed: Vec<usize> = (0..depths).filter(|&d| sums[d] == 0.0).collect();
+            let missed: Vec<usize> = (0..depths).filter(|&d| self.chains_render(d) && sums[d] == 0.0).collect();
             if !missed.is_empty() {
                 warnings.push(format!(
                     "no bootstrap path ({n_boot} per depth) found light at depth(s) {missed:?}, and without \
@@ -301,7 +328,12 @@ impl Mlt {
                 ));
             }
         }
-        let dists = targets.iter().zip(&sums).map(|(t, &s)| (s > 0.0).then(|| Distribution1D::new(t))).collect();
+        let dists = targets
+            .iter()
+            .zip(&sums)
+            .enumerate()
+            .map(|(d, (t, &s))| (s > 0.0 && self.chains_render(d)).then(|| Distribution1D::new(t)))
+            .collect();
         Ok((part(warnings), counters, Some(dists)))
     }
 
@@ -323,6 +355,9 @@ impl Mlt {
         let subchains = (0..depths)
             .map(|d| {
                 let own_stream = Rng::new(seed ^ SUBCHAIN_SEED_SALT, c * depths as u64 + d as u64);
+                if !self.chains_render(d) {
+                    return None;
+                }
                 let Some(dist) = dists[d].as_ref() else {
                     // A depth the bootstrap missed: the chain searches from a zero state (only
                     // with progressive b: otherwise the depth is never chosen).
@@ -336,7 +371,7 @@ impl Mlt {
                 Some(chain)
             })
             .collect();
-        ChainUnit { index: c, rng, large_steps: vec![(0.0, 0); depths], subchains }
+        ChainUnit { index: c, rng, large_steps: vec![(0.0, 0); depths], subchains, direct_passes: 0 }
     }
 
     /// The image and statistics of a film with its chains and merged slot: each depth normalised
@@ -350,11 +385,11 @@ impl Mlt {
         boot: &BootstrapPart,
         tally: Tally,
     ) -> RenderOutput {
-        let pixels = film.width as u64 * (film.height / self.depth_count()) as u64;
+        let pixels = film.width as u64 * (film.height / self.film_layers()) as u64;
         let large_steps = self.large_step_totals(units);
         let iterations = self.iteration_counts(std::iter::once(&merged));
         let bootstrap = boot.estimates();
-        let (image, b_final) = self.normalised_image(film, &large_steps, &iterations, &bootstrap);
+        let (image, b_final) = self.normalised_image(film, &large_steps, &iterations, &bootstrap, units);
         let mut layers = Vec::new();
         if let Some(films) = merged.count_films.as_ref() {
             for (d, per_s) in films.iter().enumerate() {
@@ -375,6 +410,9 @@ impl Mlt {
         stats.bootstrap_seconds = boot.seconds;
         stats.warnings = boot.warnings.clone();
         stats.finish(pixels, &b_boot, &b_final);
+        if let Some(direct) = stats.direct_emission.as_mut() {
+            direct.finish(pixels, tally.counters.rays);
+        }
         let relative_se = |e: &BEstimate| e.variance.filter(|_| e.mean > 0.0).map(|v| v.sqrt() / e.mean);
         for (depth, e) in stats.per_depth.iter_mut().zip(&bootstrap.estimates) {
             depth.b_bootstrap_relative_se = relative_se(e);
@@ -386,7 +424,12 @@ impl Mlt {
                 (1..self.depth_count()).map(|d| self.technique_count(d) as f64 * boot.sums[d]).sum();
             let indirect = indirect_sum / boot.paths.max(1) as f64;
             let indirect_variance = variance_of_mean(indirect_sum, boot.indirect_sum_sq, boot.paths);
-            let direct = &bootstrap.estimates[0];
+            // With the camera estimator the bootstrap's brightness is that of depths ≥ 1 only.
+            let direct = if self.direct_from_camera() {
+                BEstimate { variance: Some(0.0), ..BEstimate::default() }
+            } else {
+                bootstrap.estimates[0]
+            };
             let total = BEstimate {
                 mean: direct.mean + indirect,
                 variance: direct.variance.zip(indirect_variance).map(|(a, b)| a + b),
@@ -455,7 +498,7 @@ impl ChainRender for MltRender<'_> {
     /// beyond 2^32 pixels, and a stack beyond 2^32 rows is reported as that.
     fn film_size(&self) -> Result<(u32, u32), RenderError> {
         let (width, height) = self.image_size();
-        let stacked = u32::try_from(height as u64 * self.mlt.depth_count() as u64)
+        let stacked = u32::try_from(height as u64 * self.mlt.film_layers() as u64)
             .map_err(|_| RenderError::FilmTooLarge { width, height: u32::MAX })?;
         Ok((width, stacked))
     }
@@ -547,6 +590,20 @@ impl ChainRender for MltRender<'_> {
         let Slot { index, state, film, counters } = slot;
         let segment = self.segment();
         let depths = self.mlt.depth_count();
+        let started = Instant::now();
+        if self.mlt.direct_from_camera() {
+            // Depth 0's camera samples of the unit's pixels, sample `direct_passes` of each.
+            let rays_before = counters.rays;
+            let samples =
+                self.mlt.direct_pass(&self.ctx, self.seed, unit.index, unit.direct_passes, state, film, counters);
+            unit.direct_passes += 1;
+            if let Some(direct) = state.stats.direct_emission.as_mut() {
+                direct.camera_samples += samples;
+                direct.rays += counters.rays - rays_before;
+                direct.seconds += started.elapsed().as_secs_f64();
+            }
+        }
+        let chains_started = Instant::now();
         // The unit's own large steps so far: the choice depends on the chain alone.
         let depth_choice = (depths > 1).then(|| self.mlt.depth_choice(self.estimates(), &unit.large_steps));
         for _ in 0..segment {
@@ -559,6 +616,9 @@ impl ChainRender for MltRender<'_> {
                 unit.large_steps[d].0 += target as f64;
                 unit.large_steps[d].1 += 1;
             }
+        }
+        if let Some(direct) = state.stats.direct_emission.as_mut() {
+            direct.chain_seconds += chains_started.elapsed().as_secs_f64();
         }
         if *index == 0 {
             let moves = &state.stats.moves;
@@ -574,7 +634,7 @@ impl ChainRender for MltRender<'_> {
     fn preview(&self, film: &Accumulator, units: &[ChainUnit], slots: &[&SlotState]) -> Image {
         let large_steps = self.mlt.large_step_totals(units);
         let iterations = self.mlt.iteration_counts(slots.iter().copied());
-        self.mlt.normalised_image(film, &large_steps, &iterations, self.estimates()).0
+        self.mlt.normalised_image(film, &large_steps, &iterations, self.estimates(), units).0
     }
 }
 
