@@ -7,11 +7,10 @@ use std::rc::Rc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use glam::DVec3;
 use serde::Serialize;
 
 use super::settings::EmltSettings;
-use super::similarity::{place, places_similarity};
+use super::similarity::{inverse_length2, place, places_similarity, Place};
 use super::tree::EnsembleTree;
 use crate::integrator::path_space::PathState;
 
@@ -27,7 +26,16 @@ pub struct GuideCounts {
     pub signature_changed: AtomicU64,
     /// Nanoseconds spent computing similarity weights (Eq. 8–9).
     pub similarity_ns: AtomicU64,
+    /// α of the guided linear proposals (Sec. 3.4): their count, the sum of α in units of 1e-9,
+    /// and a histogram over the position of α between α_s and α_l in fifths (the first bin α_s,
+    /// the last α_l).
+    pub alpha_proposals: AtomicU64,
+    pub alpha_nano_sum: AtomicU64,
+    pub alpha_bins: [AtomicU64; ALPHA_BINS],
 }
+
+/// Bins of `GuideCounts::alpha_bins`.
+pub const ALPHA_BINS: usize = 5;
 
 /// The plain-number copy of [`GuideCounts`] for the JSON report.
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
@@ -37,6 +45,11 @@ pub struct GuideReport {
     pub fallback: u64,
     pub signature_changed: u64,
     pub similarity_seconds: f64,
+    /// Guided linear proposals and their mean α (0 when none).
+    pub alpha_proposals: u64,
+    pub alpha_mean: f64,
+    /// Proposals by where α is between α_s (first bin) and α_l (last) in fifths.
+    pub alpha_histogram: [u64; ALPHA_BINS],
 }
 
 impl GuideCounts {
@@ -47,7 +60,22 @@ impl GuideCounts {
             fallback: self.fallback.load(Ordering::Relaxed),
             signature_changed: self.signature_changed.load(Ordering::Relaxed),
             similarity_seconds: self.similarity_ns.load(Ordering::Relaxed) as f64 * 1e-9,
+            alpha_proposals: self.alpha_proposals.load(Ordering::Relaxed),
+            alpha_mean: self.alpha_nano_sum.load(Ordering::Relaxed) as f64 * 1e-9
+                / self.alpha_proposals.load(Ordering::Relaxed).max(1) as f64,
+            alpha_histogram: std::array::from_fn(|b| self.alpha_bins[b].load(Ordering::Relaxed)),
         }
+    }
+
+    /// Counts α of one guided linear proposal (Sec. 3.4) for the report.
+    pub fn count_alpha(&self, alpha: f64, settings: &EmltSettings) {
+        let span = settings.alpha_large - settings.alpha_small;
+        let t = if span != 0.0 { (alpha - settings.alpha_small) / span } else { 0.0 };
+        // `as` saturates: below α_s to the first bin, beyond α_l to the last.
+        let bin = ((t * ALPHA_BINS as f64) as usize).min(ALPHA_BINS - 1);
+        self.alpha_proposals.fetch_add(1, Ordering::Relaxed);
+        self.alpha_nano_sum.fetch_add((alpha * 1e9).round() as u64, Ordering::Relaxed);
+        self.alpha_bins[bin].fetch_add(1, Ordering::Relaxed);
     }
 
     pub fn add(&self, other: &GuideReport) {
@@ -55,6 +83,12 @@ impl GuideCounts {
         self.fallback.fetch_add(other.fallback, Ordering::Relaxed);
         self.signature_changed.fetch_add(other.signature_changed, Ordering::Relaxed);
         self.similarity_ns.fetch_add((other.similarity_seconds * 1e9) as u64, Ordering::Relaxed);
+        self.alpha_proposals.fetch_add(other.alpha_proposals, Ordering::Relaxed);
+        let sum = other.alpha_mean * other.alpha_proposals as f64;
+        self.alpha_nano_sum.fetch_add((sum * 1e9).round() as u64, Ordering::Relaxed);
+        for (bin, n) in self.alpha_bins.iter().zip(other.alpha_histogram) {
+            bin.fetch_add(n, Ordering::Relaxed);
+        }
     }
 }
 
@@ -68,7 +102,7 @@ pub struct GuideView {
     /// Every path's vertex places for similarity (`similarity::place`), path after path: Eq. 9
     /// reads these instead of the paths' full vertices (a dense array, so a proposal's M guides
     /// cost M short reads rather than M scattered vertex records).
-    places: Vec<DVec3>,
+    places: Vec<Place>,
     /// Where each path's places start in `places` (one more entry than paths: the end).
     place_starts: Vec<u32>,
     /// This view's identity for the weight cache (views are numbered as they are made, so a cache
@@ -87,7 +121,9 @@ struct CachedWeights {
     k: usize,
     subset: Vec<u32>,
     /// The bits of x's places j ..= k.
-    x_places: Vec<[u64; 3]>,
+    x_places: Vec<[u64; 4]>,
+    /// The bits of x's 1/L² (`similarity` module docs), which depends on all of x's vertices.
+    inv_l2: Option<u64>,
     weights: Rc<Vec<f64>>,
 }
 
@@ -107,8 +143,9 @@ thread_local! {
     static WEIGHT_CACHE: RefCell<WeightCache> = RefCell::new(WeightCache::default());
 }
 
-fn place_bits(p: DVec3) -> [u64; 3] {
-    p.to_array().map(f64::to_bits)
+fn place_bits(p: Place) -> [u64; 4] {
+    let [x, y, z] = p.p.to_array().map(f64::to_bits);
+    [x, y, z, p.infinite as u64]
 }
 
 impl GuideView {
@@ -158,7 +195,7 @@ impl GuideView {
     }
 
     /// The places of Y's path `i`.
-    fn places_of(&self, i: u32) -> &[DVec3] {
+    fn places_of(&self, i: u32) -> &[Place] {
         let i = i as usize;
         &self.places[self.place_starts[i] as usize..self.place_starts[i + 1] as usize]
     }
@@ -175,10 +212,15 @@ impl GuideView {
             return Rc::new(vec![0.0; subset.len()]);
         }
         let x_places = &x.vertices[j..=k];
+        // x̄'s own L (Eq. 8 normalised, `similarity` module docs): the reverse weights w(v | ȳ)
+        // are computed from ȳ and so with ȳ's L.
+        let inv_l2 = inverse_length2(&x.vertices);
+        let inv_l2_bits = inv_l2.map(f64::to_bits);
         let matches = |e: &CachedWeights| {
             e.view == self.id
                 && e.j == j
                 && e.k == k
+                && e.inv_l2 == inv_l2_bits
                 && e.subset == subset
                 && e.x_places.iter().zip(x_places).all(|(a, b)| *a == place_bits(place(b)))
         };
@@ -188,7 +230,7 @@ impl GuideView {
                 return hit.weights.clone();
             }
             let start = Instant::now();
-            let xp: Vec<DVec3> = x_places.iter().map(place).collect();
+            let xp: Vec<Place> = x_places.iter().map(place).collect();
             let fill = |w: &mut Vec<f64>| {
                 w.clear();
                 w.extend(subset.iter().map(|&i| {
@@ -196,7 +238,7 @@ impl GuideView {
                     if k >= v.len() {
                         0.0
                     } else {
-                        places_similarity(&xp, &v[j..=k])
+                        places_similarity(&xp, &v[j..=k], inv_l2)
                     }
                 }));
             };
@@ -209,6 +251,7 @@ impl GuideView {
                     k,
                     subset: subset.to_vec(),
                     x_places: Vec::new(),
+                    inv_l2: inv_l2_bits,
                     weights: Rc::new(w),
                 });
                 cache.entries.len() - 1
@@ -228,6 +271,7 @@ impl GuideView {
                 e.view = self.id;
                 e.j = j;
                 e.k = k;
+                e.inv_l2 = inv_l2_bits;
                 e.subset.clear();
                 e.subset.extend_from_slice(subset);
                 at
