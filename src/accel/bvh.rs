@@ -22,8 +22,8 @@ pub use triangle::{intersect_triangle, RayPre};
 
 use super::{Accel, AccelKind};
 use crate::geometry::{Hit, Ray, TriangleMesh};
-use crate::huge_pages::HugeArray;
 use crate::prefetch::prefetch_line;
+use crate::process::huge_pages::HugeArray;
 
 /// A bounding volume hierarchy over a list of shared meshes.
 ///

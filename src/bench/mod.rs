@@ -24,10 +24,11 @@ use serde::Serialize;
 use thiserror::Error;
 
 use crate::accel::bvh::Bvh;
-use crate::accel::embree::{set_flush_denormals, EmbreeAccel};
+use crate::accel::embree::EmbreeAccel;
 use crate::accel::{Accel, AccelError};
 use crate::geometry::{Hit, Ray};
 use crate::integrator::RenderError;
+use crate::process::denormals::set_flush_denormals;
 use crate::scene::{Scene, SceneError};
 
 use timing::{cpu_model, load_average, median_seconds, process_cpu_time, time_median, timed, Timing};

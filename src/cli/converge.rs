@@ -7,7 +7,6 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use plexus::accel::AccelKind;
 use plexus::film::exr_io::read_exr;
 use plexus::integrator::{self, INTEGRATOR_NAMES};
 use plexus::metrics::compare::DEFAULT_EPSILON;
@@ -18,6 +17,7 @@ use plexus::metrics::converge::{
 use plexus::metrics::plot::plot_convergence;
 
 use super::bad_input;
+use super::options::RenderOptions;
 
 #[derive(Debug, Args)]
 pub struct ConvergeArgs {
@@ -42,15 +42,8 @@ pub struct ConvergeArgs {
     /// Directory for the CSV, Markdown table and plot (must exist).
     #[arg(long, value_name = "DIR", default_value = ".")]
     pub out_dir: PathBuf,
-    /// Worker threads (default: the scene's setting, else all cores).
-    #[arg(long, value_name = "N")]
-    pub threads: Option<usize>,
-    /// Ray-query accelerator: embree or bvh.
-    #[arg(long, value_name = "embree|bvh")]
-    pub accel: Option<AccelKind>,
-    /// Integrator setting applied to every integrator (e.g. --set max_depth=8); repeatable.
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    pub set: Vec<String>,
+    #[command(flatten)]
+    pub options: RenderOptions,
     /// ε of the relative MSE (a−b)²/(b²+ε).
     #[arg(long, value_name = "E", default_value_t = DEFAULT_EPSILON)]
     pub epsilon: f64,
@@ -60,23 +53,20 @@ pub struct ConvergeArgs {
 }
 
 pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
-    let overrides =
-        args.set.iter().map(|s| integrator::parse_set(s)).collect::<Result<Vec<_>, _>>().map_err(bad_input)?;
-    if let Some(n) = args.threads {
-        integrator::check_threads(n, "--threads").map_err(bad_input)?;
-    }
+    let overrides = args.options.overrides()?;
+    args.options.check_threads()?;
     // Every budget within the render limits, and the whole study too: --times 1e30 ran for ever.
     for &t in &args.times {
-        integrator::check_budget(integrator::Budget::Seconds(t), 1, 1, "--times").map_err(bad_input)?;
+        plexus::job::check_budget(plexus::job::Budget::Seconds(t), 1, 1, "--times").map_err(bad_input)?;
     }
     let runs = (args.times.len() as u64).saturating_mul(args.seeds).saturating_mul(args.integrators.len() as u64);
     let study_seconds = args.times.iter().sum::<f64>() * runs as f64;
-    if study_seconds > integrator::MAX_SECONDS {
+    if study_seconds > plexus::job::MAX_SECONDS {
         return Err(bad_input(format!(
             "--times, --seeds and --integrators: {runs} renders of {} s in all is {study_seconds:.0} s, more than the \
              limit of {} s (30 days)",
             args.times.iter().sum::<f64>(),
-            integrator::MAX_SECONDS
+            plexus::job::MAX_SECONDS
         )));
     }
     if !(args.epsilon > 0.0 && args.epsilon.is_finite()) {
@@ -94,7 +84,7 @@ pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
     }
     let Some(reference_path) = &args.reference else { return Err(bad_input("--reference is required")) };
     let reference = read_exr(reference_path).map_err(bad_input)?;
-    let mut loaded = super::import::load_any(&args.scene, args.accel)?;
+    let mut loaded = super::import::load_any(&args.scene, args.options.accel)?;
     let (ref_w, ref_h) = (reference.width as u32, reference.height as u32);
     let cam = &loaded.scene.camera;
     if (cam.width, cam.height) != (ref_w, ref_h) {
@@ -104,10 +94,7 @@ pub fn run_converge(args: &ConvergeArgs) -> anyhow::Result<()> {
         );
         loaded.scene.camera = camera_at_resolution(cam, ref_w, ref_h).map_err(bad_input)?;
     }
-    let threads = match (args.threads, loaded.render.threads) {
-        (Some(n), _) => super::resolve_threads(Some(n), "--threads")?,
-        (None, n) => super::resolve_threads(n, "render.threads")?,
-    };
+    let threads = args.options.threads_or(loaded.render.threads)?;
     let config = StudyConfig {
         integrators: if args.integrators.len() == 1 && args.integrators[0].trim() == "all" {
             INTEGRATOR_NAMES.iter().map(|s| s.to_string()).collect()

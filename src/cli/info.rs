@@ -4,7 +4,8 @@ use std::path::PathBuf;
 
 use clap::Args;
 use plexus::accel::AccelKind;
-use plexus::integrator::memory;
+use plexus::integrator::registry::render_memory;
+use plexus::job::memory;
 use plexus::scene::scene_info;
 
 use super::bad_input;
@@ -28,7 +29,7 @@ pub fn run(args: InfoArgs) -> anyhow::Result<()> {
     let (width, height) = (loaded.scene.camera.width, loaded.scene.camera.height);
     let render = &loaded.render;
     let scene = loaded.scene.memory();
-    let needed = memory::render_memory(&render.integrator, &render.integrator_params, width, height)
+    let needed = render_memory(&render.integrator, &render.integrator_params, width, height)
         .map_err(bad_input)?
         .with_scene(scene);
     let available = memory::available_memory(scene.total());

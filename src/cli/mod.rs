@@ -8,11 +8,13 @@ mod converge;
 mod import;
 mod info;
 mod merge;
+mod options;
 mod outputs;
 mod progress;
 mod reference;
 mod render;
 mod resume;
+mod session;
 mod state_io;
 mod stats_json;
 mod warnings;
@@ -68,34 +70,15 @@ pub fn bad_input(e: impl std::fmt::Display) -> anyhow::Error {
 }
 
 /// The thread count a command uses: the explicit one (`option` names it) checked against
-/// `integrator::MAX_THREADS`, else all cores up to that bound.
+/// `job::MAX_THREADS`, else all cores up to that bound.
 pub fn resolve_threads(explicit: Option<usize>, option: &str) -> anyhow::Result<usize> {
     match explicit {
         Some(n) => {
-            plexus::integrator::check_threads(n, option).map_err(bad_input)?;
+            plexus::job::check_threads(n, option).map_err(bad_input)?;
             Ok(n)
         }
-        None => Ok(std::thread::available_parallelism().map_or(1, |n| n.get()).min(plexus::integrator::MAX_THREADS)),
+        None => Ok(std::thread::available_parallelism().map_or(1, |n| n.get()).min(plexus::job::MAX_THREADS)),
     }
-}
-
-/// Every limit a render is checked against before work starts: the budget (`budget_option` names
-/// its source) and the memory of its film, pass buffers and chains against what the process may
-/// allocate (`plexus::integrator::memory`).
-pub fn check_render_limits(
-    scene: &plexus::scene::Scene,
-    integrator: &str,
-    params: &toml::Table,
-    width: u32,
-    height: u32,
-    budget: plexus::integrator::Budget,
-    budget_option: &str,
-) -> anyhow::Result<()> {
-    use plexus::integrator::{check_budget, memory};
-    check_budget(budget, width, height, budget_option).map_err(bad_input)?;
-    let scene = scene.memory();
-    let needed = memory::render_memory(integrator, params, width, height).map_err(bad_input)?.with_scene(scene);
-    memory::check_fits(&needed, width, height, memory::available_memory(scene.total())).map_err(bad_input)
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use plexus::film::oiio::{write_image, WriteOptions};
 use plexus::film::Image;
-use plexus::integrator::Progress;
+use plexus::job::Progress;
 
 /// `--preview-every`: write the current image to the render's outputs this often.
 pub struct Previews {

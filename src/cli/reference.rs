@@ -8,12 +8,13 @@ use std::time::Instant;
 
 use clap::Args;
 
-use plexus::accel::AccelKind;
 use plexus::film::oiio::{check_output_path, write_image, WriteOptions};
-use plexus::integrator::{self, Budget, RenderJob, INTEGRATOR_NAMES};
+use plexus::integrator::{self, INTEGRATOR_NAMES};
+use plexus::job::{Budget, RenderJob};
 use plexus::metrics::converge::{camera_at_resolution, parse_resolution};
 
 use super::bad_input;
+use super::options::RenderOptions;
 use super::progress::{bar_wanted, BarProgress};
 use super::stats_json::{self, RenderStats};
 
@@ -40,20 +41,12 @@ pub struct ReferenceArgs {
     /// Film resolution WIDTHxHEIGHT (default: the scene's); must keep the scene's aspect ratio.
     #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
     pub resolution: Option<(u32, u32)>,
-    /// Worker threads (default: all cores).
-    #[arg(long, value_name = "N")]
-    pub threads: Option<usize>,
-    /// Ray-query accelerator: embree or bvh.
-    #[arg(long, value_name = "embree|bvh")]
-    pub accel: Option<AccelKind>,
-    /// Integrator setting (e.g. --set max_depth=64); repeatable.
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    pub set: Vec<String>,
+    #[command(flatten)]
+    pub options: RenderOptions,
 }
 
 pub fn run_reference(args: &ReferenceArgs) -> anyhow::Result<()> {
-    let overrides =
-        args.set.iter().map(|s| integrator::parse_set(s)).collect::<Result<Vec<_>, _>>().map_err(bad_input)?;
+    let overrides = args.options.overrides()?;
     let budget = match (args.spp, args.time) {
         (Some(0), _) => return Err(bad_input("--spp must be at least 1")),
         (Some(n), _) => Budget::SamplesPerPixel(n),
@@ -61,31 +54,24 @@ pub fn run_reference(args: &ReferenceArgs) -> anyhow::Result<()> {
         (None, Some(s)) => return Err(bad_input(format!("--time must be a positive number of seconds, got {s}"))),
         (None, None) => return Err(bad_input("give --spp N or --time SECONDS")),
     };
-    let threads = super::resolve_threads(args.threads, "--threads")?;
+    // A reference does not read the scene's thread count: all cores unless told.
+    let threads = args.options.threads_or(None)?;
     check_output_path(&args.out).map_err(bad_input)?;
     for path in stats_json::stats_paths(std::slice::from_ref(&args.out)) {
         super::outputs::check_stats_path(&path)?;
     }
     let load_start = Instant::now();
-    let mut loaded = super::import::load_any(&args.scene, args.accel)?;
+    let mut loaded = super::import::load_any(&args.scene, args.options.accel)?;
     if let Some((w, h)) = args.resolution {
         loaded.scene.camera = camera_at_resolution(&loaded.scene.camera, w, h).map_err(bad_input)?;
     }
     let render = &loaded.render;
     let base = if args.integrator == render.integrator { render.integrator_params.clone() } else { toml::Table::new() };
     let params = integrator::merge_params(&base, &overrides);
-    let integ = integrator::create(&args.integrator, &params)?;
-    let camera = &loaded.scene.camera;
+    let row = integrator::registry::lookup(&args.integrator)?;
+    let integ = (row.create)(&params)?;
     let budget_option = if args.spp.is_some() { "--spp" } else { "--time" };
-    super::check_render_limits(
-        &loaded.scene,
-        &args.integrator,
-        &params,
-        camera.width,
-        camera.height,
-        budget,
-        budget_option,
-    )?;
+    row.check_limits(&loaded.scene, &params, budget, budget_option).map_err(bad_input)?;
     let load_time = load_start.elapsed().as_secs_f64();
 
     let job = RenderJob { budget, seed: args.seed, threads };

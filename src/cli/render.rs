@@ -7,16 +7,16 @@ use std::time::Instant;
 
 use clap::Args;
 
-use plexus::accel::AccelKind;
-use plexus::integrator::{self, Budget, RenderJob, INTEGRATOR_NAMES};
+use plexus::integrator::{self, registry, INTEGRATOR_NAMES};
+use plexus::job::{Budget, RenderJob};
 use plexus::scene::{builtin_cornell_box, LoadedScene};
-use plexus::state::{Session, Shard, StateFile};
+use plexus::state::Shard;
 
 use super::bad_input;
+use super::options::RenderOptions;
 use super::outputs::check_outputs;
-use super::progress::{bar_wanted, BarProgress, Previews};
+use super::session::SessionRun;
 use super::state_io::{self, is_state_path};
-use super::stats_json::RenderStats;
 
 /// Samples per pixel when neither the command line nor the scene gives a budget.
 pub const DEFAULT_SPP: u64 = 64;
@@ -38,22 +38,15 @@ pub struct RenderArgs {
     /// Time budget in seconds instead of a sample budget.
     #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     pub time: Option<f64>,
-    /// Worker threads (default: the scene's setting, else all cores).
-    #[arg(long, value_name = "N")]
-    pub threads: Option<usize>,
+    #[command(flatten)]
+    pub options: RenderOptions,
     /// Seed of every random stream (same seed and thread count: same image, bit for bit).
     #[arg(long, value_name = "S")]
     pub seed: Option<u64>,
-    /// Ray-query accelerator: embree or bvh.
-    #[arg(long, value_name = "embree|bvh")]
-    pub accel: Option<AccelKind>,
     /// Output image (format from the extension: .exr, .png, .hdr, .tif, ...); repeatable.
     /// Default: the scene's outputs, else <scene-stem>.exr and <scene-stem>.png here.
     #[arg(long = "out", short = 'o', value_name = "PATH")]
     pub out: Vec<PathBuf>,
-    /// Integrator setting, as a TOML value (e.g. --set max_depth=8); repeatable.
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    pub set: Vec<String>,
     /// During the render, write the current image to the outputs at most every SECONDS seconds
     /// (between passes), so a long render can be watched.
     #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
@@ -86,11 +79,8 @@ struct Plan {
 }
 
 pub fn run(args: RenderArgs) -> anyhow::Result<()> {
-    let overrides =
-        args.set.iter().map(|s| integrator::parse_set(s)).collect::<Result<Vec<_>, _>>().map_err(bad_input)?;
-    if let Some(n) = args.threads {
-        plexus::integrator::check_threads(n, "--threads").map_err(bad_input)?;
-    }
+    let overrides = args.options.overrides()?;
+    args.options.check_threads()?;
     if let Some(s) = args.preview_every {
         if !(s.is_finite() && s > 0.0) {
             return Err(bad_input(format!("--preview-every must be a positive number of seconds, got {s}")));
@@ -99,27 +89,19 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
 
     let load_start = Instant::now();
     let (loaded, scene_files) = match &args.scene {
-        Some(path) => super::import::load_any_recorded(path, args.accel)?,
-        None => (builtin_cornell_box(args.accel)?, Vec::new()),
+        Some(path) => super::import::load_any_recorded(path, args.options.accel)?,
+        None => (builtin_cornell_box(args.options.accel)?, Vec::new()),
     };
     let plan = resolve(&args, &loaded, &overrides)?;
-    let integrator = integrator::create(&plan.integrator, &plan.params)?;
-    let camera = &loaded.scene.camera;
+    let row = registry::lookup(&plan.integrator)?;
+    let integrator = (row.create)(&plan.params)?;
     let budget_option = match (args.spp, args.time, plan.budget) {
         (Some(_), _, _) => "--spp",
         (None, Some(_), _) => "--time",
         (None, None, Budget::SamplesPerPixel(_)) => "render.spp",
         (None, None, Budget::Seconds(_)) => "render.time",
     };
-    super::check_render_limits(
-        &loaded.scene,
-        &plan.integrator,
-        &plan.params,
-        camera.width,
-        camera.height,
-        plan.budget,
-        budget_option,
-    )?;
+    row.check_limits(&loaded.scene, &plan.params, plan.budget, budget_option).map_err(bad_input)?;
 
     // Every output is checked before any work, so a typo costs nothing.
     let (states, images): (Vec<PathBuf>, Vec<PathBuf>) = plan.outputs.iter().cloned().partition(|p| is_state_path(p));
@@ -147,19 +129,13 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         }
         state_paths.push(path.clone());
     }
-    let checkpoint_every = match args.checkpoint_every {
-        Some(s) => {
-            Some(std::time::Duration::try_from_secs_f64(s).ok().filter(|d| !d.is_zero()).ok_or_else(|| {
-                bad_input(format!("--checkpoint-every must be a positive number of seconds, got {s}"))
-            })?)
-        }
-        None => None,
-    };
+    let checkpoint_every = super::session::checkpoint_interval(args.checkpoint_every)?;
     let camera = &loaded.scene.camera;
     check_outputs(&images, camera.width as usize, camera.height as usize)?;
     super::outputs::check_state_paths(&state_paths)?;
-    if !integrator.supports_sessions()
-        && (!state_paths.is_empty() || args.shard.is_some() || checkpoint_every.is_some())
+    let can = row.capabilities;
+    if (!can.checkpoint && (!state_paths.is_empty() || checkpoint_every.is_some()))
+        || (!can.shard && args.shard.is_some())
     {
         return Err(bad_input(integrator.no_state().to_string()));
     }
@@ -178,91 +154,26 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         args.shard,
         &images,
     );
-    let checkpoint_path = args.checkpoint.clone();
-    let write_checkpoint = |state: plexus::state::RenderState| {
-        if let Some(path) = &checkpoint_path {
-            if let Err(e) = (StateFile { header: header.clone(), state }).write(path) {
-                eprintln!("warning: checkpoint not written: {e}");
-            }
-        }
-    };
-    plexus::interrupt::install().map_err(|e| anyhow::anyhow!("cannot install the interrupt handler: {e}"))?;
-    let session = Session {
-        control: integrator::driver::RunControl {
-            stop: Some(plexus::interrupt::stop_flag()),
-            stop_at_pass: args.stop_at_pass,
-            checkpoint_every,
-        },
-        checkpoint: checkpoint_every.is_some().then_some(&write_checkpoint as &dyn Fn(plexus::state::RenderState)),
-        resume: None,
-        shard: args.shard,
-    };
-    let progress = BarProgress::new(
-        match plan.budget {
-            Budget::Seconds(s) => Some(s),
-            Budget::SamplesPerPixel(_) => None,
-        },
-        bar_wanted(),
-    )
-    .with_previews(args.preview_every.map(|every_seconds| Previews { every_seconds, outputs: images.clone() }));
-    let cpu_start = plexus::bench::timing::process_cpu_time();
-    let rendered = if integrator.supports_sessions() {
-        integrator.render_session(scene, &job, &progress, &session)
-    } else {
-        // No state to save: a plain render, its state record only describing a complete run.
-        integrator.render(scene, &job, &progress).map(|output| plexus::state::SessionOutput {
-            output,
-            state: plexus::state::RenderState {
-                passes_done: 0,
-                unit_count: 0,
-                film_width: 0,
-                film_height: 0,
-                film: Vec::new(),
-                counters: Default::default(),
-                part: Vec::new(),
-                complete: true,
-                interrupted: false,
-                wall_time_s: 0.0,
-                units: None,
-            },
-        })
-    };
-    progress.finish();
-    let cpu_time = plexus::bench::timing::process_cpu_time().saturating_sub(cpu_start);
-    let rendered = rendered?;
-    let file = StateFile { header, state: rendered.state };
-    // Without --checkpoint an interrupted render still saves its state, beside its first image,
-    // under a name no other file has.
-    if file.state.interrupted && state_paths.is_empty() {
-        state_paths.extend(images.first().map(|p| super::outputs::free_interrupt_state_path(p)));
-    }
-    let output = rendered.output;
-    super::warnings::print_render_warnings(&output);
-
-    state_io::write_images(&images, &output)?;
-    state_io::write_states(&state_paths, &file)?;
     let scene_name = match &args.scene {
         Some(p) => p.display().to_string(),
         None => state_io::BUILTIN_SCENE.to_string(),
     };
-    let mut stats = RenderStats::new(
+    super::session::run(SessionRun {
+        integrator: integrator.as_ref(),
+        keeps_state: can.checkpoint,
+        scene,
         scene_name,
-        integrator.name().to_string(),
-        integrator.settings_json(),
-        plan.budget,
-        plan.seed,
-        plan.threads,
-        scene.accel.kind().to_string(),
+        job,
+        header,
+        checkpoint: args.checkpoint.clone().zip(checkpoint_every),
+        stop_at_pass: args.stop_at_pass,
+        preview_every: args.preview_every,
+        resume: None,
+        shard: args.shard,
+        images,
+        states: state_paths,
         load_time,
-        Some(scene.features()),
-        &output,
-        images.clone(),
-    );
-    stats.run = state_io::run_info(&file, &state_paths, None, 0);
-    stats.cpu_time_s = Some(cpu_time.as_secs_f64());
-    let stats_files = state_io::write_stats(&images, &state_paths, &stats)?;
-    let written: Vec<PathBuf> = images.iter().chain(&state_paths).chain(&stats_files).cloned().collect();
-    state_io::finish(&stats, &written, &file, &state_paths)
+    })
 }
 
 /// Merges the command line over the scene's render settings.
@@ -285,11 +196,8 @@ fn resolve(args: &RenderArgs, loaded: &LoadedScene, overrides: &[(String, toml::
             (None, None) => Budget::SamplesPerPixel(DEFAULT_SPP),
         },
     };
-    // The budget's limits are checked in `check_render_limits`, which knows the film.
-    let threads = match (args.threads, render.threads) {
-        (Some(n), _) => super::resolve_threads(Some(n), "--threads")?,
-        (None, n) => super::resolve_threads(n, "render.threads")?,
-    };
+    // The budget's limits are checked with the memory (`Row::check_limits`), which knows the film.
+    let threads = args.options.threads_or(render.threads)?;
 
     let outputs = if !args.out.is_empty() {
         args.out.clone()

@@ -9,14 +9,14 @@ use std::time::Instant;
 
 use clap::Args;
 
-use plexus::integrator::{self, Budget, RenderJob};
+use plexus::integrator::registry;
+use plexus::job::{Budget, RenderJob};
 use plexus::scene::builtin_cornell_box;
-use plexus::state::{Session, StateError, StateFile};
+use plexus::state::{StateError, StateFile};
 
 use super::bad_input;
-use super::progress::{bar_wanted, BarProgress, Previews};
+use super::session::SessionRun;
 use super::state_io::{self, is_state_path};
-use super::stats_json::RenderStats;
 
 #[derive(Debug, Args)]
 pub struct ResumeArgs {
@@ -59,7 +59,11 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
     }
     let params: toml::Table =
         toml::from_str(&h.params).map_err(|e| bad_input(format!("{}: {e}", args.state.display())))?;
-    let integrator = integrator::create(&h.integrator, &params)?;
+    let row = registry::lookup(&h.integrator)?;
+    let integrator = (row.create)(&params)?;
+    if !row.capabilities.resume {
+        return Err(bad_input(integrator.no_state().to_string()));
+    }
     if integrator.settings_json() != serde_json::from_str::<serde_json::Value>(&h.settings).unwrap_or_default() {
         return Err(bad_input(StateError::Mismatch(format!(
             "{}: the {} settings it was rendered with ({}) are not what this plexus makes of them ({})",
@@ -93,15 +97,8 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
         (None, Some(_)) => "--time",
         (None, None) => "the state's budget",
     };
-    super::check_render_limits(&loaded.scene, &h.integrator, &params, camera.width, camera.height, budget, option)?;
-    let checkpoint_every = match args.checkpoint_every {
-        Some(s) => {
-            Some(std::time::Duration::try_from_secs_f64(s).ok().filter(|d| !d.is_zero()).ok_or_else(|| {
-                bad_input(format!("--checkpoint-every must be a positive number of seconds, got {s}"))
-            })?)
-        }
-        None => None,
-    };
+    row.check_limits(&loaded.scene, &params, budget, option).map_err(bad_input)?;
+    let checkpoint_every = super::session::checkpoint_interval(args.checkpoint_every)?;
     let images: Vec<PathBuf> =
         if args.out.is_empty() { outputs_below_state(&args.state, &h.outputs)? } else { args.out.clone() };
     if images.iter().any(|p| is_state_path(p)) {
@@ -114,56 +111,22 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
 
     let job = RenderJob { budget, seed: h.seed, threads: h.threads.max(1) };
     let header = plexus::state::StateHeader { budget, outputs: images.clone(), ..h.clone() };
-    let state_path = args.state.clone();
-    let write_checkpoint = |state: plexus::state::RenderState| {
-        if let Err(e) = (StateFile { header: header.clone(), state }).write(&state_path) {
-            eprintln!("warning: checkpoint not written: {e}");
-        }
-    };
-    plexus::interrupt::install().map_err(|e| anyhow::anyhow!("cannot install the interrupt handler: {e}"))?;
-    let session = Session {
-        control: integrator::driver::RunControl {
-            stop: Some(plexus::interrupt::stop_flag()),
-            stop_at_pass: args.stop_at_pass,
-            checkpoint_every,
-        },
-        checkpoint: checkpoint_every.is_some().then_some(&write_checkpoint as &dyn Fn(plexus::state::RenderState)),
-        resume: Some(&saved.state),
-        shard: None,
-    };
-    let progress = BarProgress::new(
-        match budget {
-            Budget::Seconds(s) => Some(s),
-            Budget::SamplesPerPixel(_) => None,
-        },
-        bar_wanted(),
-    )
-    .with_previews(args.preview_every.map(|every_seconds| Previews { every_seconds, outputs: images.clone() }));
-    let rendered = integrator.render_session(&loaded.scene, &job, &progress, &session);
-    progress.finish();
-    let rendered = rendered?;
-    let file = StateFile { header, state: rendered.state };
-    let output = rendered.output;
-    let states = vec![args.state.clone()];
-    state_io::write_images(&images, &output)?;
-    state_io::write_states(&states, &file)?;
-    let mut stats = RenderStats::new(
+    super::session::run(SessionRun {
+        integrator: integrator.as_ref(),
+        keeps_state: true,
+        scene: &loaded.scene,
         scene_name,
-        integrator.name().to_string(),
-        integrator.settings_json(),
-        budget,
-        h.seed,
-        job.threads,
-        h.accel.clone(),
+        job,
+        header,
+        checkpoint: checkpoint_every.map(|every| (args.state.clone(), every)),
+        stop_at_pass: args.stop_at_pass,
+        preview_every: args.preview_every,
+        resume: Some((&saved.state, &args.state)),
+        shard: None,
+        images,
+        states: vec![args.state.clone()],
         load_time,
-        Some(loaded.scene.features()),
-        &output,
-        images.clone(),
-    );
-    stats.run = state_io::run_info(&file, &states, Some(&args.state), 0);
-    let stats_files = state_io::write_stats(&images, &states, &stats)?;
-    let written: Vec<PathBuf> = images.iter().chain(&states).chain(&stats_files).cloned().collect();
-    state_io::finish(&stats, &written, &file, &states)
+    })
 }
 
 /// The outputs a state file names, as resume writes them without `--out`: only paths below the

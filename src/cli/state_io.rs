@@ -5,7 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use plexus::film::oiio::{write_image, WriteOptions};
-use plexus::integrator::RenderOutput;
+use plexus::integrator::registry::Space;
+use plexus::job::RenderOutput;
 use plexus::state::{StateFile, StateHeader};
 
 use super::bad_input;
@@ -70,11 +71,9 @@ pub fn run_info(file: &StateFile, states: &[PathBuf], resumed_from: Option<&Path
     let units = match h.shard {
         None => serde_json::json!({ "all": s.unit_count }),
         Some(shard) => {
-            let kind = if h.integrator == "pt" || h.integrator == "bdpt" || h.integrator == "light" {
-                "passes"
-            } else {
-                "chains"
-            };
+            // A shard's units are what its integrator's row says they are (the render model).
+            let space = plexus::integrator::registry::lookup(&h.integrator).map(|r| r.capabilities.space);
+            let kind = if space.is_ok_and(|s| s == Space::Image) { "passes" } else { "chains" };
             serde_json::json!({ kind: format!("{kind} i with i mod {} = {}", shard.count, shard.index), "shard": shard.to_string() })
         }
     };
@@ -136,7 +135,7 @@ pub fn header(
     accel: String,
     integrator: &dyn plexus::integrator::Integrator,
     params: &toml::Table,
-    job: &plexus::integrator::RenderJob,
+    job: &plexus::job::RenderJob,
     size: (u32, u32),
     shard: Option<plexus::state::Shard>,
     outputs: &[PathBuf],

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use plexus::integrator::{Budget, RenderOutput};
+use plexus::job::{Budget, RenderOutput};
 use plexus::scene::SceneFeatures;
 use plexus::stats::Counters;
 

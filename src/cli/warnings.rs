@@ -2,7 +2,7 @@
 //! integrator, so that a black image (a light facing away, a bootstrap that found no light) is
 //! never silent. The stats JSON keeps the integrator's own warnings too.
 
-use plexus::integrator::RenderOutput;
+use plexus::job::RenderOutput;
 
 /// The lines to print for `output`: the integrator's warnings (MLT's bootstrap), then, when the
 /// image is black and no warning said so already, one saying it is.

@@ -166,7 +166,7 @@ fn read_image_with(path: &Path, codes_for_8_bit: bool) -> Result<ReadImage, Imag
             }
         };
         let mut colours = vec![[0u8; 3]; texels];
-        crate::huge_pages::advise_huge_pages(&colours);
+        crate::process::huge_pages::advise_huge_pages(&colours);
         let status = if info.channels >= 3 {
             read_codes(3, colours.as_mut_ptr().cast(), &mut levels, &mut msg)
         } else {

@@ -3,8 +3,8 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use super::Aabb;
-use crate::huge_pages::{on_huge_pages, vec_for_random_reads};
 use crate::prefetch::prefetch;
+use crate::process::huge_pages::{on_huge_pages, vec_for_random_reads};
 
 /// Why a mesh was refused.
 #[derive(Debug, Error, PartialEq)]
@@ -251,7 +251,7 @@ mod tests {
     #[cfg(target_os = "linux")]
     #[test]
     fn large_arrays_ask_for_huge_pages() {
-        use crate::huge_pages::{advised_for_huge_pages, HUGE_PAGE};
+        use crate::process::huge_pages::{advised_for_huge_pages, HUGE_PAGE};
         let n = 400_000u32; // 4.8 MB of positions and of indices: whole huge pages inside each
         let positions: Vec<Vec3> = (0..n).map(|i| Vec3::new(i as f32, (i % 7) as f32, 1.0)).collect();
         let indices: Vec<[u32; 3]> = (0..n).map(|i| [i, (i + 1) % n, (i + 2) % n]).collect();

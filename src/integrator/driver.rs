@@ -60,7 +60,6 @@
 //!   its own b_d / iterations only at output, so its image too depends on the seed and the chain
 //!   count only, not on the threads.
 
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -74,7 +73,9 @@ use crate::stats::Counters;
 mod chains;
 mod image;
 pub use chains::{
-    boundary_counters, load_units, merge_chain_parts, merge_slot_states, save_units, ChainPart, ChainSession, Tally,
+    boundary_counters, chain_output_of_state, chain_scale, expected_value_splats, layers_to_image, load_units,
+    merge_chain_parts, run_chains, save_units, ChainBootstrap, ChainIntegrator, ChainPart, ChainRender, ChainRun,
+    ChainStats, Tally,
 };
 pub use image::{state_film, ImagePart, ImagePlan, ImageRender, ImageRun, Tile, TileSamples, TILE_SIZE};
 
@@ -196,25 +197,22 @@ pub type Snapshot<'a, U, S> = dyn Fn(&PassBoundary<'_, U, S>) -> Image + 'a;
 /// Receives a pass boundary to save as a checkpoint (see [`RunControl::checkpoint_every`]).
 pub type CheckpointHook<'a, U, S> = dyn Fn(&PassBoundary<'_, U, S>) + 'a;
 
-/// What can end a run before its budget, and how often it offers checkpoints: both only at pass
-/// boundaries, so what is saved is a state the render model can resume from.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct RunControl<'a> {
-    /// Set (by a signal handler) to stop at the next pass boundary.
-    pub stop: Option<&'a AtomicBool>,
-    /// Stop when the schedule reaches this pass (`passes_done` ≥ it): a deterministic stand-in for
-    /// a signal, for tests of interrupt and resume.
-    pub stop_at_pass: Option<u64>,
-    /// Offer a checkpoint at a pass boundary once at least this long has passed since the run
-    /// started or the last one.
-    pub checkpoint_every: Option<Duration>,
+// What can stop a run lives in the job layer, below the state files that carry it in a
+// `Session`; it is the driver that reads it.
+pub use crate::job::RunControl;
+
+/// Which side of a pass a [`PassHook`] is called on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PassEdge {
+    /// Before the pass's items run.
+    Before,
+    /// After its buffers are applied, before previews and checkpoints read the boundary.
+    After,
 }
 
-impl RunControl<'_> {
-    fn stop_requested(&self, passes_done: u64) -> bool {
-        self.stop.is_some_and(|f| f.load(Ordering::SeqCst)) || self.stop_at_pass.is_some_and(|n| passes_done >= n)
-    }
-}
+/// Work on the units between passes, on the driver's thread (ensemble MLT moves the fixed
+/// ensemble's paths into the view its chains read during the pass, and back after it).
+pub type PassHook<'a, U> = dyn Fn(PassEdge, u64, &mut [U]) + 'a;
 
 /// Which passes of the schedule a run renders: pass p when p mod `count` = `index` (the pass
 /// shards of pt, BDPT and light tracing); every pass by default.
@@ -308,7 +306,7 @@ impl Driver {
         let pool = ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("plexus-worker-{i}"))
-            .start_handler(|_| crate::accel::embree::set_flush_denormals())
+            .start_handler(|_| crate::process::denormals::set_flush_denormals())
             .build()
             .map_err(|e| RenderError::ThreadPool(e.to_string()))?;
         Ok(Driver { pool, threads, seed: job.seed, width: width as usize, height: height as usize, clock })
@@ -354,12 +352,14 @@ impl Driver {
             snapshot,
             RunControl::default(),
             None,
+            None,
         )
     }
 
     /// [`Driver::run`] from `start` (a resumed render, or a shard's set of passes), under
     /// `control`: before each pass the run ends if `control` asks it to stop, and after a pass at
-    /// most every `control.checkpoint_every` the boundary goes to `checkpoint`. A budget of
+    /// most every `control.checkpoint_every` the boundary goes to `checkpoint`; `hook` sees the
+    /// units before and after every pass it runs. A budget of
     /// `Passes::Count(n)` means schedule positions below n, so a resumed run ends where the
     /// uninterrupted one would have; a time budget counts from this run's start.
     #[allow(clippy::too_many_arguments)]
@@ -373,6 +373,7 @@ impl Driver {
         snapshot: Option<&Snapshot<'_, U, S>>,
         control: RunControl<'_>,
         checkpoint: Option<&CheckpointHook<'_, U, S>>,
+        hook: Option<&PassHook<'_, U>>,
     ) -> RunOutput<U, S>
     where
         U: Send,
@@ -441,6 +442,9 @@ impl Driver {
                 break;
             }
             let pass_start = clock.now();
+            if let Some(hook) = hook {
+                hook(PassEdge::Before, pass, &mut units);
+            }
             // Deal the units to slots: unit u to slot u mod threads, in increasing unit order.
             let mut dealt: Vec<Vec<(usize, &mut U, &mut SplatBuffer)>> =
                 (0..threads).map(|_| Vec::with_capacity(unit_count / threads + 1)).collect();
@@ -465,6 +469,9 @@ impl Driver {
             for buffer in buffers.iter_mut() {
                 film.apply(buffer);
                 buffer.clear();
+            }
+            if let Some(hook) = hook {
+                hook(PassEdge::After, pass, &mut units);
             }
             let now = clock.now();
             last_pass = now.saturating_sub(pass_start);

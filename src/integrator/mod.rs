@@ -10,76 +10,19 @@ pub mod memory;
 pub mod path_space;
 pub mod pss;
 pub mod pt;
+pub mod registry;
 
-use std::time::Duration;
-
-use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::film::Image;
 use crate::scene::Scene;
 use crate::state::{RenderState, Session, SessionOutput, StateError};
-use crate::stats::Counters;
 
-/// How much work a render may do.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Budget {
-    /// Samples per pixel (path tracer, BDPT, light tracing) — or, for MCMC integrators, the
-    /// number of mutations per pixel.
-    SamplesPerPixel(u64),
-    /// Wall-clock seconds.
-    Seconds(f64),
-}
-
-/// Everything about a render that is not the scene: budget, seed, threads.
-#[derive(Clone, Debug, Serialize)]
-pub struct RenderJob {
-    pub budget: Budget,
-    pub seed: u64,
-    /// Number of worker threads. The same seed and thread count give a bit-identical result; for
-    /// pt, BDPT and light tracing the film (and so the image) is the same for any thread count
-    /// (`driver`'s render model), MLT's not yet (its films are still per-thread state).
-    pub threads: usize,
-}
-
-/// Reports progress of long work (a progress bar in the CLI, nothing in tests).
-pub trait Progress: Sync {
-    /// Total units of work, when known in advance (sample budgets).
-    fn set_total(&self, total: u64);
-    /// `units` more units are done.
-    fn advance(&self, units: u64);
-    /// A short status line (e.g. an MCMC acceptance rate).
-    fn message(&self, msg: &str);
-    /// Seconds between preview images during a render (`plexus render --preview-every`); `None`
-    /// (the default) for no previews, which then cost nothing.
-    fn preview_interval(&self) -> Option<f64> {
-        None
-    }
-    /// Receives the render's current normalised image, between passes, at most every
-    /// `preview_interval` seconds.
-    fn preview(&self, _image: &Image) {}
-}
-
-/// A `Progress` that ignores everything.
-pub struct NoProgress;
-
-impl Progress for NoProgress {
-    fn set_total(&self, _: u64) {}
-    fn advance(&self, _: u64) {}
-    fn message(&self, _: &str) {}
-}
-
-/// What a render produced: the image, extra named layers (per-technique images, sample counts),
-/// counters, the wall time, and integrator-specific statistics for the JSON report.
-#[derive(Debug)]
-pub struct RenderOutput {
-    pub image: Image,
-    pub layers: Vec<(String, Image)>,
-    pub counters: Counters,
-    pub wall_time: Duration,
-    pub extra_stats: serde_json::Value,
-}
+// The job layer's types are what every integrator takes and returns; they are named here too so
+// that an integrator's imports come from one place.
+pub use crate::job::{
+    check_budget, check_threads, Budget, LimitError, NoProgress, Progress, RenderJob, RenderOutput, MAX_SECONDS,
+    MAX_THREADS, MAX_TOTAL_SAMPLES,
+};
 
 /// Why a render could not run.
 #[derive(Debug, Error)]
@@ -90,8 +33,9 @@ pub enum RenderError {
     ThreadPool(String),
     #[error("a {width}×{height} film has more than 2^32 pixels, more than a render can address")]
     FilmTooLarge { width: u32, height: u32 },
-    #[error("unknown integrator '{0}': expected one of {names}", names = INTEGRATOR_NAMES.join(", "))]
-    UnknownIntegrator(String),
+    /// A name no row of the registry has; `known` lists the names that are.
+    #[error("unknown integrator '{name}': expected one of {known}")]
+    UnknownIntegrator { name: String, known: String },
     /// A budget, count or memory need beyond what a render can do (`check_budget`, `memory`).
     #[error("{0}")]
     Limit(String),
@@ -101,56 +45,10 @@ pub enum RenderError {
     State(#[from] StateError),
 }
 
-/// The longest time budget: 30 days. Longer is a typo or a hang (`--time 1e20` once panicked in
-/// `Duration::from_secs_f64`); a render that long would be checkpointed and resumed instead.
-pub const MAX_SECONDS: f64 = 30.0 * 86_400.0;
-
-/// The largest total sample budget, samples per pixel × pixels (mutations for MCMC): 2^53. Up to
-/// there every count is exact in the f64 the normalisation and the JSON report use, and the u64
-/// counters (samples, rays ≈ a few per sample) cannot overflow; at the 10^7–10^8 samples per second
-/// this machine class does, 2^53 is already years of rendering, so the bound refuses only typos.
-pub const MAX_TOTAL_SAMPLES: u64 = 1 << 53;
-
-/// The most worker threads: 1024. Each thread is a worker slot with its own counters and scratch
-/// state (MLT: a slot state per thread), and a pass waits for every slot, so far more threads than
-/// cores only costs memory and start-up (`--threads 2000` never finished). Refused rather than
-/// clamped: for MLT the image depends on the thread count, so a silent clamp would render another
-/// image than the one asked for.
-pub const MAX_THREADS: usize = 1024;
-
-/// Checks a budget against the limits before any work: a time budget positive, finite and at most
-/// `MAX_SECONDS`; a sample budget at least 1 and, times the film's pixels, at most
-/// `MAX_TOTAL_SAMPLES`. `option` names where the budget came from (`--spp`, `render.spp`) for the
-/// message.
-pub fn check_budget(budget: Budget, width: u32, height: u32, option: &str) -> Result<(), RenderError> {
-    match budget {
-        Budget::Seconds(s) => {
-            if !(s.is_finite() && s > 0.0 && s <= MAX_SECONDS) {
-                return Err(RenderError::Limit(format!(
-                    "{option} {s:?}: expected a number of seconds in (0, {MAX_SECONDS}] (30 days)"
-                )));
-            }
-        }
-        Budget::SamplesPerPixel(n) => {
-            let pixels = width as u64 * height as u64;
-            let total = n.checked_mul(pixels).filter(|&t| (1..=MAX_TOTAL_SAMPLES).contains(&t));
-            if n == 0 || total.is_none() {
-                return Err(RenderError::Limit(format!(
-                    "{option} {n}: expected 1 ..= {} for a {width}x{height} film (total samples at most 2^53)",
-                    (MAX_TOTAL_SAMPLES / pixels.max(1)).max(1)
-                )));
-            }
-        }
+impl From<LimitError> for RenderError {
+    fn from(e: LimitError) -> RenderError {
+        RenderError::Limit(e.0)
     }
-    Ok(())
-}
-
-/// Checks a thread count (`option` names its source) against `MAX_THREADS`.
-pub fn check_threads(threads: usize, option: &str) -> Result<(), RenderError> {
-    if !(1..=MAX_THREADS).contains(&threads) {
-        return Err(RenderError::Limit(format!("{option} {threads}: expected 1 ..= {MAX_THREADS} threads")));
-    }
-    Ok(())
 }
 
 /// A light-transport algorithm, configured and ready to render any scene.
@@ -220,23 +118,13 @@ pub trait Integrator: Send + Sync {
     }
 }
 
-/// The names `create` accepts, in the order `plexus render --help` lists them.
-pub const INTEGRATOR_NAMES: &[&str] = &["pt", "bdpt", "light", "pssmlt", "mmlt", "rjmlt", "pmlt", "emlt"];
+/// The names `create` accepts, in the order `plexus render --help` lists them (the registry's).
+pub use registry::NAMES as INTEGRATOR_NAMES;
 
 /// The integrator called `name`, configured from `params` (the scene's `[integrator]` table merged
-/// with `--set` overrides; unknown keys are errors).
+/// with `--set` overrides; unknown keys are errors): its row of the `registry` builds it.
 pub fn create(name: &str, params: &toml::Table) -> Result<Box<dyn Integrator>, RenderError> {
-    match name {
-        "pt" => Ok(Box::new(pt::PathTracer::from_params(params)?)),
-        "bdpt" => Ok(Box::new(bdpt::Bdpt::from_params(params)?)),
-        "light" => Ok(Box::new(light_tracing::LightTracer::from_params(params)?)),
-        "pssmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Pssmlt, params)?)),
-        "mmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Mmlt, params)?)),
-        "rjmlt" => Ok(Box::new(pss::mlt::Mlt::from_params(pss::settings::MltVariant::Rjmlt, params)?)),
-        "pmlt" => Ok(Box::new(path_space::Pmlt::from_params(params)?)),
-        "emlt" => Ok(Box::new(ensemble::render::Emlt::from_params(params)?)),
-        other => Err(RenderError::UnknownIntegrator(other.to_string())),
-    }
+    (registry::lookup(name)?.create)(params)
 }
 
 /// Deserialises an integrator's settings struct from its parameter table; the message of an

@@ -78,25 +78,70 @@ fn disk_pdf(radius: f32) -> f32 {
     1.0 / (PI * radius * radius)
 }
 
-/// Emission by the environment whose direction sampler is `sample_dir` (towards the environment).
-fn sample_env_emission(
-    u: [f32; 5],
-    center: Vec3,
-    radius: f32,
-    sample_dir: impl Fn([f32; 2]) -> Option<(Vec3, f32)>,
-    radiance: impl Fn(Vec3) -> Rgb,
-) -> Option<EmissionSample> {
-    let (w_env, pdf_dir) = sample_dir([u[1], u[2]])?;
-    let p = disk_point(w_env, center, radius, [u[3], u[4]]);
-    Some(EmissionSample {
-        p,
-        n: -w_env,
-        dir: -w_env,
-        radiance: radiance(w_env),
-        pdf_pos: disk_pdf(radius),
-        pdf_dir,
-        infinite: true,
-    })
+/// What an environment at infinity is to the light transport, written once for the constant and
+/// the image environment: each gives its direction sampler (towards the environment) with its
+/// solid-angle density and inverse, its radiance and the scene's bounding sphere; next-event
+/// sampling (`sample_li`, a far point along the direction), emission (a direction, then a point
+/// on the disk that covers the scene) and their pdfs and inverses follow from those.
+pub trait Environment {
+    /// A direction towards the environment from `u`, with its solid-angle density.
+    fn sample_direction(&self, u: [f32; 2]) -> Option<(Vec3, f32)>;
+    /// Solid-angle density of `sample_direction` at world direction `w`.
+    fn pdf_direction(&self, w: Vec3) -> f32;
+    /// Inverse of `sample_direction`.
+    fn invert_direction(&self, w: Vec3) -> Option<[f32; 2]>;
+    /// Radiance seen looking along the world direction `w`.
+    fn radiance_along(&self, w: Vec3) -> Rgb;
+    /// The scene's bounding sphere (centre, radius): where far points and emission disks go.
+    fn scene_sphere(&self) -> (Vec3, f32);
+
+    fn sample_li(&self, reference: Vec3, u: [f32; 3]) -> Option<LightLiSample> {
+        let (wi, pdf) = self.sample_direction([u[1], u[2]])?;
+        let (center, radius) = self.scene_sphere();
+        Some(LightLiSample {
+            wi,
+            p: far_point(reference, wi, center, radius),
+            p_error: Vec3::ZERO,
+            n: Vec3::ZERO,
+            radiance: self.radiance_along(wi),
+            pdf,
+            infinite: true,
+        })
+    }
+    /// Inverse of `sample_li` for the direction `wi`; `gamma` fills the unused `u[0]`. The
+    /// direction warp's Jacobian is its density `pdf_direction`.
+    fn invert_li(&self, wi: Vec3, gamma: f32) -> Option<LiInverse> {
+        let [a, b] = self.invert_direction(wi)?;
+        Some(LiInverse { u: [clamp_unit(gamma), a, b], jacobian: self.pdf_direction(wi) })
+    }
+    fn sample_emission(&self, u: [f32; 5]) -> Option<EmissionSample> {
+        let (w_env, pdf_dir) = self.sample_direction([u[1], u[2]])?;
+        let (center, radius) = self.scene_sphere();
+        Some(EmissionSample {
+            p: disk_point(w_env, center, radius, [u[3], u[4]]),
+            n: -w_env,
+            dir: -w_env,
+            radiance: self.radiance_along(w_env),
+            pdf_pos: disk_pdf(radius),
+            pdf_dir,
+            infinite: true,
+        })
+    }
+    /// `(pdf_pos, pdf_dir)` for the emitted ray along `dir` (any origin on the disk).
+    fn pdf_emission(&self, dir: Vec3) -> (f32, f32) {
+        (disk_pdf(self.scene_sphere().1), self.pdf_direction(-dir))
+    }
+    /// Inverse of `sample_emission` for the ray along `dir` through `p` (any point on it).
+    fn invert_emission(&self, p: Vec3, dir: Vec3, gamma: f32) -> Option<EmissionInverse> {
+        let (center, radius) = self.scene_sphere();
+        let [a, b] = self.invert_direction(-dir)?;
+        let [c, d] = invert_disk_point(-dir, center, radius, p)?;
+        Some(EmissionInverse {
+            u: [clamp_unit(gamma), a, b, c, d],
+            jacobian_pos: disk_pdf(radius),
+            jacobian_dir: self.pdf_direction(-dir),
+        })
+    }
 }
 
 impl ConstantEnvironment {
@@ -110,52 +155,24 @@ impl ConstantEnvironment {
     pub fn power(&self) -> f32 {
         luminance(self.radiance).max(0.0) * 4.0 * PI * PI * self.scene_radius * self.scene_radius
     }
+}
 
+impl Environment for ConstantEnvironment {
     /// Uniform direction on the sphere from `u[0..2]` with its solid-angle density.
-    pub fn sample_direction(&self, u: [f32; 2]) -> Option<(Vec3, f32)> {
+    fn sample_direction(&self, u: [f32; 2]) -> Option<(Vec3, f32)> {
         Some((sample_uniform_sphere(u), pdf_uniform_sphere()))
     }
-    pub fn pdf_direction(&self, _w: Vec3) -> f32 {
+    fn pdf_direction(&self, _w: Vec3) -> f32 {
         pdf_uniform_sphere()
     }
-    pub fn invert_direction(&self, w: Vec3) -> Option<[f32; 2]> {
+    fn invert_direction(&self, w: Vec3) -> Option<[f32; 2]> {
         invert_uniform_sphere(w)
     }
-
-    pub fn sample_li(&self, reference: Vec3, u: [f32; 3]) -> Option<LightLiSample> {
-        let (wi, pdf) = self.sample_direction([u[1], u[2]])?;
-        Some(LightLiSample {
-            wi,
-            p: far_point(reference, wi, self.scene_center, self.scene_radius),
-            p_error: Vec3::ZERO,
-            n: Vec3::ZERO,
-            radiance: self.radiance,
-            pdf,
-            infinite: true,
-        })
+    fn radiance_along(&self, _w: Vec3) -> Rgb {
+        self.radiance
     }
-    /// Inverse of `sample_li` for the direction `wi`; `gamma` fills the unused `u[0]`. The
-    /// direction warp's Jacobian is its density `pdf_direction`.
-    pub fn invert_li(&self, wi: Vec3, gamma: f32) -> Option<LiInverse> {
-        let [a, b] = self.invert_direction(wi)?;
-        Some(LiInverse { u: [clamp_unit(gamma), a, b], jacobian: self.pdf_direction(wi) })
-    }
-    pub fn sample_emission(&self, u: [f32; 5]) -> Option<EmissionSample> {
-        sample_env_emission(u, self.scene_center, self.scene_radius, |v| self.sample_direction(v), |_| self.radiance)
-    }
-    /// `(pdf_pos, pdf_dir)` for the emitted ray along `dir` (any origin on the disk).
-    pub fn pdf_emission(&self, dir: Vec3) -> (f32, f32) {
-        (disk_pdf(self.scene_radius), self.pdf_direction(-dir))
-    }
-    /// Inverse of `sample_emission` for the ray along `dir` through `p` (any point on it).
-    pub fn invert_emission(&self, p: Vec3, dir: Vec3, gamma: f32) -> Option<EmissionInverse> {
-        let [a, b] = self.invert_direction(-dir)?;
-        let [c, d] = invert_disk_point(-dir, self.scene_center, self.scene_radius, p)?;
-        Some(EmissionInverse {
-            u: [clamp_unit(gamma), a, b, c, d],
-            jacobian_pos: disk_pdf(self.scene_radius),
-            jacobian_dir: self.pdf_direction(-dir),
-        })
+    fn scene_sphere(&self) -> (Vec3, f32) {
+        (self.scene_center, self.scene_radius)
     }
 }
 
@@ -220,10 +237,12 @@ impl ImageEnvironment {
         }
         total as f32 * self.scale * PI * self.scene_radius * self.scene_radius
     }
+}
 
+impl Environment for ImageEnvironment {
     /// Importance-sampled direction (world, towards the environment) from `u`, with its solid-angle
     /// density p(x, y)/(2π² sin θ). `None` at a pole (sin θ = 0) or for an all-black map.
-    pub fn sample_direction(&self, u: [f32; 2]) -> Option<(Vec3, f32)> {
+    fn sample_direction(&self, u: [f32; 2]) -> Option<(Vec3, f32)> {
         let (p, pdf_xy) = self.distribution.sample_continuous(u);
         if !(pdf_xy > 0.0) {
             return None;
@@ -236,7 +255,7 @@ impl ImageEnvironment {
         Some((w, pdf_xy / (2.0 * PI * PI * sin_theta)))
     }
     /// Solid-angle density of `sample_direction` at world direction `w`.
-    pub fn pdf_direction(&self, w: Vec3) -> f32 {
+    fn pdf_direction(&self, w: Vec3) -> f32 {
         let d = self.to_local * w;
         let sin_theta = (d.x * d.x + d.z * d.z).sqrt();
         if !(sin_theta > 0.0) {
@@ -246,47 +265,18 @@ impl ImageEnvironment {
     }
     /// Inverse of `sample_direction`: the marginal and conditional CDFs at the map coordinates of
     /// `w` (exact, uniform inside the texel). `None` for a texel of zero density.
-    pub fn invert_direction(&self, w: Vec3) -> Option<[f32; 2]> {
+    fn invert_direction(&self, w: Vec3) -> Option<[f32; 2]> {
         if !w.is_finite() {
             return None;
         }
         self.distribution.invert_continuous(direction_to_equirect(self.to_local * w))
     }
 
-    pub fn sample_li(&self, reference: Vec3, u: [f32; 3]) -> Option<LightLiSample> {
-        let (wi, pdf) = self.sample_direction([u[1], u[2]])?;
-        Some(LightLiSample {
-            wi,
-            p: far_point(reference, wi, self.scene_center, self.scene_radius),
-            p_error: Vec3::ZERO,
-            n: Vec3::ZERO,
-            radiance: self.radiance(wi),
-            pdf,
-            infinite: true,
-        })
+    fn radiance_along(&self, w: Vec3) -> Rgb {
+        self.radiance(w)
     }
-    /// Inverse of `sample_li` for the direction `wi`; `gamma` fills the unused `u[0]`. The
-    /// direction warp's Jacobian is its density `pdf_direction`.
-    pub fn invert_li(&self, wi: Vec3, gamma: f32) -> Option<LiInverse> {
-        let [a, b] = self.invert_direction(wi)?;
-        Some(LiInverse { u: [clamp_unit(gamma), a, b], jacobian: self.pdf_direction(wi) })
-    }
-    pub fn sample_emission(&self, u: [f32; 5]) -> Option<EmissionSample> {
-        sample_env_emission(u, self.scene_center, self.scene_radius, |v| self.sample_direction(v), |w| self.radiance(w))
-    }
-    /// `(pdf_pos, pdf_dir)` for the emitted ray along `dir` (any origin on the disk).
-    pub fn pdf_emission(&self, dir: Vec3) -> (f32, f32) {
-        (disk_pdf(self.scene_radius), self.pdf_direction(-dir))
-    }
-    /// Inverse of `sample_emission` for the ray along `dir` through `p` (any point on it).
-    pub fn invert_emission(&self, p: Vec3, dir: Vec3, gamma: f32) -> Option<EmissionInverse> {
-        let [a, b] = self.invert_direction(-dir)?;
-        let [c, d] = invert_disk_point(-dir, self.scene_center, self.scene_radius, p)?;
-        Some(EmissionInverse {
-            u: [clamp_unit(gamma), a, b, c, d],
-            jacobian_pos: disk_pdf(self.scene_radius),
-            jacobian_dir: self.pdf_direction(-dir),
-        })
+    fn scene_sphere(&self) -> (Vec3, f32) {
+        (self.scene_center, self.scene_radius)
     }
 }
 

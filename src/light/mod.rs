@@ -31,7 +31,7 @@ pub use area::{
     sample_emission_direction, sample_mesh_point, sample_triangle_point, triangle_barycentrics, triangle_normal,
     MeshPoint,
 };
-pub use environment::{direction_to_equirect, equirect_to_direction};
+pub use environment::{direction_to_equirect, equirect_to_direction, Environment};
 
 use std::sync::Arc;
 

@@ -196,6 +196,7 @@ pub fn bake(p: &SunSky) -> BakedMap {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::light::Environment;
 
     /// The baked sun is a disk of the sun's solid angle: row 0's texels cover exactly
     /// 2π(1 − cos(π/H)), within 0.2% of 2π(1 − cos 0.2667°), and carry the sun's radiance; a

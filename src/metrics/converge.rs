@@ -13,7 +13,8 @@ use thiserror::Error;
 
 use crate::camera::Camera;
 use crate::film::Image;
-use crate::integrator::{Budget, NoProgress, RenderError, RenderJob};
+use crate::integrator::RenderError;
+use crate::job::{Budget, NoProgress, RenderJob};
 use crate::metrics::compare::{compare_images, CompareError};
 use crate::scene::Scene;
 

@@ -7,7 +7,7 @@ use std::fmt;
 use serde::Serialize;
 
 use super::Scene;
-use crate::integrator::memory::SceneMemory;
+use crate::job::memory::SceneMemory;
 use crate::light::Light;
 use crate::material::Material;
 use crate::sampling::{Distribution1D, Distribution2D};
@@ -175,7 +175,7 @@ fn distribution2d_bytes(d: &Distribution2D) -> usize {
 
 impl Scene {
     /// The bytes this built scene holds, by part: the scene's share of the render memory estimate
-    /// (`integrator::memory`) that `render` checks and `info` prints.
+    /// (`job::memory`) that `render` checks and `info` prints.
     pub fn memory(&self) -> SceneMemory {
         let meshes: usize = self.meshes.iter().map(|m| m.memory_bytes()).sum();
         let lights: usize = self

@@ -599,14 +599,11 @@ impl Builder<'_> {
         };
         let time = match r.time {
             None => None,
-            Some(t) if t > 0.0 && t <= crate::integrator::MAX_SECONDS => Some(t),
+            Some(t) if t > 0.0 && t <= crate::job::MAX_SECONDS => Some(t),
             Some(t) => {
                 return Err(self.err(
                     "render.time",
-                    format!(
-                        "expected a number of seconds in (0, {}] (30 days), got {t:?}",
-                        crate::integrator::MAX_SECONDS
-                    ),
+                    format!("expected a number of seconds in (0, {}] (30 days), got {t:?}", crate::job::MAX_SECONDS),
                 ))
             }
         };
@@ -620,11 +617,11 @@ impl Builder<'_> {
         };
         let threads = match r.threads {
             None => None,
-            Some(n) if (1..=crate::integrator::MAX_THREADS as i64).contains(&n) => Some(n as usize),
+            Some(n) if (1..=crate::job::MAX_THREADS as i64).contains(&n) => Some(n as usize),
             Some(n) => {
                 return Err(self.err(
                     "render.threads",
-                    format!("expected an integer in 1 ..= {}, got {n}", crate::integrator::MAX_THREADS),
+                    format!("expected an integer in 1 ..= {}, got {n}", crate::job::MAX_THREADS),
                 ))
             }
         };

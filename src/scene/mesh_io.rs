@@ -12,14 +12,7 @@ use ply_rs::ply::{DefaultElement, Property};
 use super::ply;
 use crate::input_file::open_regular;
 
-/// A mesh as read or generated, before the transform and validation.
-#[derive(Clone, Debug, Default)]
-pub struct RawMesh {
-    pub positions: Vec<Vec3>,
-    pub indices: Vec<[u32; 3]>,
-    pub normals: Option<Vec<Vec3>>,
-    pub uvs: Option<Vec<Vec2>>,
-}
+pub use super::raw_mesh::RawMesh;
 
 /// Reads every object of an OBJ file into one mesh (polygons triangulated as fans). Normals and
 /// texture coordinates are kept only when every object has them for every vertex.

@@ -12,6 +12,7 @@ pub mod mesh_io;
 mod ply;
 pub mod portal;
 pub mod procedural;
+mod raw_mesh;
 pub mod shapes;
 pub mod transform;
 
@@ -95,7 +96,7 @@ impl Scene {
         let bytes: u64 =
             self.meshes.iter().map(|m| (m.triangle_count() * std::mem::size_of::<[Vec3; 3]>()) as u64).sum();
         let held = self.memory().total();
-        let room = crate::integrator::memory::available_memory(held).map(|a| a.saturating_sub(held));
+        let room = crate::job::memory::available_memory(held).map(|a| a.saturating_sub(held));
         if room.is_none_or(|room| bytes <= room / 2) {
             self.corners = self.meshes.iter().map(|m| m.corner_copies()).collect();
         }

@@ -12,7 +12,7 @@ use std::f32::consts::PI;
 
 use glam::{Vec2, Vec3};
 
-use super::mesh_io::RawMesh;
+use super::raw_mesh::RawMesh;
 
 /// Default number of segments of a disk.
 pub const DISK_DEFAULT_SEGMENTS: u32 = 64;

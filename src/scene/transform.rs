@@ -5,7 +5,7 @@ use glam::{Mat3, Mat4, Vec3};
 
 use super::desc::{Rotations, TransformDesc};
 use super::error::fmt3;
-use super::mesh_io::RawMesh;
+use super::raw_mesh::RawMesh;
 
 /// The rotation that applies `rotations` in the order given (the first one first).
 pub fn rotation_matrix(rotations: &Rotations) -> Result<Mat3, String> {

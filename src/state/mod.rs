@@ -26,7 +26,7 @@
 //! normalised image of a state: resume's and merge's output) and [`Integrator::merge_parts`]. What
 //! its units and slots carry is its own `part` of the state, written with [`encode`]; a unit type
 //! implements [`UnitState`]. The driver holds what the integrators of a kind share around their
-//! sessions: `ImageRender` and `ImagePart` for the image-space ones, `ChainSession` and
+//! sessions: `ImageRender` and `ImagePart` for the image-space ones, `run_chains`, `ChainPart` and
 //! `merge_chain_parts` for the Markov chain ones (`integrator::driver`).
 
 mod merge;
@@ -40,7 +40,7 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::integrator::Budget;
+use crate::job::Budget;
 use crate::stats::Counters;
 
 pub use merge::merge_states;

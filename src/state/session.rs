@@ -8,8 +8,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use super::RenderState;
-use crate::integrator::driver::RunControl;
-use crate::integrator::RenderOutput;
+use crate::job::{RenderOutput, RunControl};
 
 /// Shard `index` of `count` (0-based): the render's work units dealt into `count` disjoint sets —
 /// passes p with p mod count = index for pt, BDPT and light tracing; chains c with c mod count =

@@ -15,8 +15,8 @@ use glam::Vec2;
 
 use crate::film::oiio::{ReadImage, ReadPixels};
 use crate::film::tonemap::srgb_eotf;
-use crate::huge_pages::advise_huge_pages;
 use crate::prefetch::prefetch;
+use crate::process::huge_pages::advise_huge_pages;
 use crate::spectrum::Rgb;
 
 /// A decoded bitmap: linear RGB, row 0 at the top, every texel in [0, 1].

@@ -165,6 +165,38 @@ fn unknown_integrator_lists_the_valid_ones() {
     render_fails(&dir, &scene, &["--integrator", "magic"], &["unknown integrator 'magic'", "pt"]);
     let in_file = write(&dir, "t.toml", &format!("{}\n[integrator]\ntype = \"magic\"\n", good_scene()));
     render_fails(&dir, &in_file, &[], &["unknown integrator 'magic'", "pt"]);
+    // The list is the registry's, every row of it, in its order.
+    let every = plexus::integrator::registry::NAMES.join(", ");
+    render_fails(&dir, &scene, &["--integrator", "magic"], &[&format!("expected one of {every}")]);
+    let help = plexus(&["render", "--help"], &dir);
+    assert!(String::from_utf8_lossy(&help.stdout).contains(&every), "render --help lists {every}");
+}
+
+/// The session options are offered by the integrator's registry row: every shipped integrator's
+/// row offers checkpoints and shards (emlt's since it runs on the chain runner), and a shard of
+/// each renders and writes its state. (A row without them refuses both before any work:
+/// `Integrator::no_state`; the registry's unit test keeps each row equal to its integrator.)
+#[test]
+fn session_options_follow_the_registry_capabilities() {
+    use plexus::integrator::registry::INTEGRATORS;
+    let tmp = temp_dir("capabilities");
+    let dir = tmp.path().to_path_buf();
+    let scene = write(&dir, "s.toml", &good_scene());
+    for row in INTEGRATORS {
+        assert!(row.capabilities.checkpoint && row.capabilities.shard, "{} offers no sessions", row.name);
+        let out = format!("{}.pxstate", row.name);
+        // Small chain settings: one shard of two must hold a chain (emlt: a pair of two).
+        let small = match row.name {
+            "emlt" => vec!["--set", "ensemble_size=8", "--set", "pairs=2", "--set", "bootstrap=1000"],
+            "pssmlt" | "mmlt" | "rjmlt" | "pmlt" => vec!["--set", "chains=8", "--set", "bootstrap=1000"],
+            _ => vec![],
+        };
+        let mut args = vec!["render", &scene, "--integrator", row.name, "--spp", "1", "--shard", "0/2", "--out", &out];
+        args.extend_from_slice(&small);
+        let o = plexus(&args, &dir);
+        assert_eq!(o.status.code(), Some(0), "{}: {}", row.name, stderr(&o));
+        assert!(dir.join(&out).is_file(), "{}", row.name);
+    }
 }
 
 #[test]

@@ -15,6 +15,8 @@
 //! For every page of docs/ and docs/lab/ and the README, every **relative link** resolves: the file
 //! exists, and a `#fragment` is the anchor of a heading in it (GitHub's slugs).
 //!
+//! And the source tree's imports run one way: no module cycle at any level (`module_cycles`).
+//!
 //! The checker is plain functions over strings, so the unit tests at the end show it rejecting a
 //! copy of a page with a bogus path, module, flag or link inserted: a check that cannot fail is not
 //! evidence.
@@ -22,6 +24,10 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+// The module-cycle check reads the source tree too; it lives beside this file so that it shares
+// this binary (each test binary links the whole library).
+mod module_cycles;
 
 /// The pages that describe the code as it is now (the lab notebook's entries are dated records and
 /// are held only to their links).

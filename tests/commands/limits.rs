@@ -116,6 +116,16 @@ fn an_mlt_bootstrap_that_does_not_fit_is_refused_with_the_estimate() {
     assert_refused("mlt-memory", "[4, 4]", "", &args, &["4x4", "402.34 GiB", "bootstrap"]);
 }
 
+/// emlt's ensembles are in the estimate: 2 × 2^23 chains of two paths of 1026 vertices each (and
+/// the views of Y) are petabytes, refused before the bootstrap starts. Before emlt had a branch in
+/// `integrator::memory`, the same command started rendering (its bootstrap, then 2^24 chains'
+/// allocations).
+#[test]
+fn emlt_ensembles_that_do_not_fit_are_refused_with_the_estimate() {
+    let args = render(&["--integrator", "emlt", "--set", "ensemble_size=8388608", "--set", "max_depth=1024"]);
+    assert_refused("emlt-memory", "[4, 4]", "", &args, &["4x4", "chains", "available", "ensemble_size"]);
+}
+
 #[test]
 fn info_prints_the_render_memory_estimate() {
     let dir = temp_dir("info");

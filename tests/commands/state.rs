@@ -7,9 +7,13 @@ use std::path::Path;
 
 use plexus::camera::Camera;
 use plexus::film::Image;
-use plexus::integrator::driver::RunControl;
-use plexus::integrator::{create, Budget, Integrator, NoProgress, RenderJob};
+use plexus::integrator::driver::{ImagePart, ImageRender, RunControl};
+use plexus::integrator::registry::{self, Capabilities, Row, Space};
+use plexus::integrator::{create, Budget, Integrator, NoProgress, Progress, RenderError, RenderJob, RenderOutput};
+use plexus::job::memory::RenderMemory;
+use plexus::sampling::UniformSource;
 use plexus::scene::{load_scene, Scene};
+use plexus::spectrum::Rgb;
 use plexus::state::{merge_states, RenderState, Session, Shard, StateFile, StateHeader};
 
 fn scene(name: &str, width: u32, height: u32) -> Scene {
@@ -257,4 +261,285 @@ fn merge_refuses_mismatched_overlapping_and_missing_shards() {
     let mut whole = b;
     whole.1.header.shard = None;
     assert!(merge(&[a, whole]).contains("not a shard"));
+}
+
+/// A dummy integrator for the registry test: every sample of a pixel adds `value` times a number
+/// from the sample's own stream, so a resume that repeated or skipped a pass would change the image.
+/// Its `reserve` setting is memory its row's estimate counts as chains.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Default)]
+#[serde(deny_unknown_fields, default)]
+struct Flat {
+    value: f32,
+    reserve: u64,
+}
+
+impl Flat {
+    fn from_params(params: &toml::Table) -> Result<Flat, RenderError> {
+        plexus::integrator::settings_from_table("flat", params)
+    }
+
+    fn memory(params: &toml::Table, width: u32, height: u32) -> Result<RenderMemory, RenderError> {
+        let pixels = width as u64 * height as u64;
+        let chains = Flat::from_params(params)?.reserve;
+        Ok(RenderMemory { scene: Default::default(), film: pixels * 36, pass_buffers: pixels * 16, chains })
+    }
+}
+
+impl Integrator for Flat {
+    fn name(&self) -> &'static str {
+        "flat"
+    }
+
+    fn settings_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+
+    fn run_session(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+        save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
+        let render =
+            ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?.with_session(*session, save)?;
+        let value = self.value;
+        let (run, _) = render.run(
+            |_| (),
+            |x, y, sampler, slot| {
+                let u = sampler.stream(0).next_1d();
+                slot.film.add(x as usize, y as usize, Rgb::splat(value * u));
+                slot.counters.samples += 1;
+            },
+        );
+        Ok(run.into_session())
+    }
+
+    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
+        ImagePart::output_of_state(state)
+    }
+
+    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
+        ImagePart::merge(parts)
+    }
+}
+
+/// Registering an integrator is one row: with the row added to the shipped ones, the dummy is
+/// found by name (and an unknown name lists it), its row's memory estimate is what the limits check
+/// refuses, and it renders, checkpoints, is stopped, saved to a state file and resumed to the
+/// uninterrupted image bit for bit — through the library calls `plexus render` and `resume` make
+/// (`registry::find`, `Row::create`, `Row::check_limits`, `render_session` under a `Session`,
+/// `StateFile`). The shipped table does not see it.
+#[test]
+fn a_dummy_integrator_registered_by_one_row_renders_checks_memory_and_checkpoints() {
+    let mut rows = registry::INTEGRATORS.to_vec();
+    rows.push(Row {
+        name: "flat",
+        create: |p| Ok(Box::new(Flat::from_params(p)?)),
+        memory: Flat::memory,
+        capabilities: Capabilities::sessions(Space::Image),
+    });
+    assert!(registry::lookup("flat").is_err(), "the shipped table is unchanged");
+    let unknown = registry::find(&rows, "nope").expect_err("unknown").to_string();
+    assert!(unknown.contains("flat") && unknown.contains("pt"), "{unknown}");
+    let row = registry::find(&rows, "flat").expect("registered");
+    assert_eq!(row.settings(&toml::Table::new()).expect("defaults"), serde_json::json!({"value": 0.0, "reserve": 0}));
+    assert!((row.create)(&toml::from_str("colour = 1").expect("toml")).is_err(), "unknown keys are refused");
+
+    // The limits check counts the row's estimate, with the scene.
+    let scene = scene("cornell-box", 64, 48);
+    let params: toml::Table = toml::from_str("value = 0.75\nreserve = 1000").expect("params");
+    let budget = Budget::SamplesPerPixel(70);
+    let checked = row.check_limits_within(&scene, &params, budget, "--spp", None).expect("fits");
+    assert_eq!(checked.chains, 1000);
+    assert_eq!(checked.film, 64 * 48 * 36);
+    assert_eq!(checked.scene, scene.memory());
+    let room = Some(checked.total());
+    assert!(row.check_limits_within(&scene, &params, budget, "--spp", room).is_ok());
+    let greedy: toml::Table = toml::from_str("value = 0.75\nreserve = 1001").expect("params");
+    let refused = row.check_limits_within(&scene, &greedy, budget, "--spp", room).expect_err("one byte too many");
+    assert!(refused.to_string().contains("lower the resolution, max_depth, bootstrap or chains"), "{refused}");
+    let over = row.check_limits_within(&scene, &params, Budget::SamplesPerPixel(0), "--spp", None);
+    assert!(over.expect_err("no samples").to_string().contains("--spp 0"));
+
+    // Rendered, checkpointed at every pass boundary, stopped, saved and resumed.
+    let integrator = (row.create)(&params).expect("integrator");
+    let job = RenderJob { budget, seed: 7, threads: 2 };
+    let full = integrator.render_session(&scene, &job, &NoProgress, &Session::default()).expect("render");
+    assert!(full.output.image.mean()[0] > 0.3, "the dummy's image is its value times a uniform number");
+    let checkpoints = std::cell::RefCell::new(Vec::new());
+    let keep = |state: RenderState| checkpoints.borrow_mut().push(state.passes_done);
+    let stopped = Session {
+        control: RunControl {
+            stop_at_pass: Some(2),
+            checkpoint_every: Some(std::time::Duration::ZERO),
+            ..RunControl::default()
+        },
+        checkpoint: Some(&keep),
+        ..Session::default()
+    };
+    let first = integrator.render_session(&scene, &job, &NoProgress, &stopped).expect("stopped run");
+    assert!(first.state.interrupted && first.state.passes_done == 2);
+    assert_eq!(*checkpoints.borrow(), vec![1, 2], "a checkpoint at each pass boundary");
+    let file = through_file(header(integrator.as_ref(), "value = 0.75\nreserve = 1000", &job, None), first.state);
+    assert_eq!(file.header.integrator, "flat");
+    let resumed = Session { resume: Some(&file.state), ..Session::default() };
+    let last = integrator.render_session(&scene, &job, &NoProgress, &resumed).expect("resumed run");
+    assert!(last.state.complete);
+    assert_eq!(bits(&last.output.image), bits(&full.output.image), "the resumed image differs");
+    // The control: resuming as if no pass had been done renders passes 0 and 1 twice.
+    let mut wrong = file.state.clone();
+    wrong.passes_done = 0;
+    let session = Session { resume: Some(&wrong), ..Session::default() };
+    let out = integrator.render_session(&scene, &job, &NoProgress, &session).expect("wrong resume");
+    assert_ne!(bits(&out.output.image), bits(&full.output.image), "the negative control must differ");
+}
+
+/// emlt on the chain runner: a render of K = 2 ensemble pairs (4 passes: half-iterations of both
+/// pairs) stopped after pass 1 and after pass 3, every state through the file, resumes to the
+/// uninterrupted render's image, film sums and samples bit for bit; a resumed pass must know
+/// which half of each pair is X (pass 1's X is the second half) and give every pair back its Y.
+/// The negative control resumes the pass-1 state as if no pass were done (X and Y swapped, one
+/// half-iteration more) and must not give the image.
+#[test]
+fn emlt_interrupted_and_resumed_equals_the_uninterrupted_render_bit_for_bit() {
+    let scene = scene("cornell-box", 64, 48);
+    // it = 3072 / 64 = 48 steps per chain of X, 48 · 32 · 2 = 3072 mutations a pass: 4 passes.
+    let params = "max_depth = 4\nbootstrap = 2000\nensemble_size = 32\npairs = 2";
+    let integrator = create("emlt", &toml::from_str(params).expect("params")).expect("emlt");
+    let job = RenderJob { budget: Budget::SamplesPerPixel(4), seed: 7, threads: 2 };
+    let full = integrator.render_session(&scene, &job, &NoProgress, &Session::default()).expect("render");
+    assert!(full.output.image.mean()[0] > 0.0, "a black image tests nothing");
+    assert_eq!(full.state.passes_done, 4);
+    let stop = |pass: u64| Session {
+        control: RunControl { stop_at_pass: Some(pass), ..RunControl::default() },
+        ..Session::default()
+    };
+    let first = integrator.render_session(&scene, &job, &NoProgress, &stop(1)).expect("first run");
+    assert!(first.state.interrupted && first.state.passes_done == 1);
+    let file = through_file(header(integrator.as_ref(), params, &job, None), first.state.clone());
+    let second = Session { resume: Some(&file.state), ..stop(3) };
+    let second = integrator.render_session(&scene, &job, &NoProgress, &second).expect("second run");
+    assert!(second.state.interrupted && second.state.passes_done == 3);
+    let file = through_file(file.header, second.state);
+    let last = Session { resume: Some(&file.state), ..Session::default() };
+    let resumed = integrator.render_session(&scene, &job, &NoProgress, &last).expect("resumed run");
+    assert!(resumed.state.complete && !resumed.state.interrupted);
+    assert_eq!(bits(&resumed.output.image), bits(&full.output.image), "the resumed image differs");
+    assert_eq!(resumed.output.counters.samples, full.output.counters.samples);
+    let film_bits = |s: &RenderState| -> Vec<[u64; 3]> { s.film.iter().map(|p| p.map(f64::to_bits)).collect() };
+    assert_eq!(film_bits(&resumed.state), film_bits(&full.state), "film sums");
+    let again = integrator.output_of_state(&through_file(file.header, resumed.state).state).expect("output");
+    assert_eq!(bits(&again.image), bits(&full.output.image), "output_of_state");
+
+    let mut wrong = first.state;
+    wrong.passes_done = 0;
+    let session = Session { resume: Some(&wrong), ..Session::default() };
+    let out = integrator.render_session(&scene, &job, &NoProgress, &session).expect("wrong resume");
+    let differing = bits(&out.output.image).iter().zip(bits(&full.output.image)).filter(|(a, b)| **a != *b).count();
+    println!("emlt: a resume that forgets pass 1 was done differs at {differing} pixels");
+    assert!(differing > 0, "the negative control must differ");
+}
+
+/// A sharded emlt render is K independent ensemble pairs fixed at the start: shard k/N renders
+/// pairs k, k + N, … into their own film layers, so merging the N shards gives the unsharded
+/// K-pair render bit for bit — image, film sums and samples — not merely to within rounding (the
+/// other pairs' layers are zeros in a shard, and x + 0 = x). K = 3 pairs, N = 3 (a pair a shard)
+/// and N = 2 (pairs {0, 2} and {1}); a shard's bytes do not depend on its threads; a shard that
+/// would hold no pair is refused.
+#[test]
+fn emlt_shards_by_pair_merge_into_the_k_pair_render_bit_for_bit() {
+    let scene = scene("cornell-glass", 64, 48);
+    let params = "max_depth = 4\nbootstrap = 2000\nensemble_size = 16\npairs = 3";
+    let integrator = create("emlt", &toml::from_str(params).expect("params")).expect("emlt");
+    let job = RenderJob { budget: Budget::SamplesPerPixel(4), seed: 11, threads: 2 };
+    let full = integrator.render_session(&scene, &job, &NoProgress, &Session::default()).expect("render");
+    assert!(full.output.image.mean()[0] > 0.0, "a black image tests nothing");
+    let film_bits = |s: &RenderState| -> Vec<[u64; 3]> { s.film.iter().map(|p| p.map(f64::to_bits)).collect() };
+    for n in [3u64, 2] {
+        let shards: Vec<(std::path::PathBuf, StateFile)> = (0..n)
+            .map(|k| {
+                let shard = Shard { index: k, count: n };
+                let session = Session { shard: Some(shard), ..Session::default() };
+                let out = integrator.render_session(&scene, &job, &NoProgress, &session).expect("shard");
+                let file = through_file(header(integrator.as_ref(), params, &job, Some(shard)), out.state);
+                (format!("shard{k}.pxstate").into(), file)
+            })
+            .collect();
+        if n == 3 {
+            let one_thread = RenderJob { threads: 1, ..job.clone() };
+            let session = Session { shard: Some(Shard { index: 1, count: 3 }), ..Session::default() };
+            let out = integrator.render_session(&scene, &one_thread, &NoProgress, &session).expect("shard");
+            let bytes = |s: &RenderState| plexus::state::encode(s).expect("encode");
+            assert!(bytes(&out.state) == bytes(&shards[1].1.state), "emlt shard bytes depend on the threads");
+        }
+        let merged = merge_states(&shards, |parts| {
+            integrator.merge_parts(parts).map_err(|e| plexus::state::StateError::Mismatch(e.to_string()))
+        })
+        .expect("merge");
+        let image = integrator.output_of_state(&merged.state).expect("merged output").image;
+        assert_eq!(bits(&image), bits(&full.output.image), "N={n}: the merged image differs");
+        assert_eq!(film_bits(&merged.state), film_bits(&full.state), "N={n}: film sums");
+        assert_eq!(merged.state.counters.samples, full.output.counters.samples, "N={n}: samples");
+    }
+    let beyond = Session { shard: Some(Shard { index: 3, count: 4 }), ..Session::default() };
+    let err = integrator.render_session(&scene, &job, &NoProgress, &beyond).err().expect("a shard without a pair");
+    assert!(err.to_string().contains("pairs"), "{err}");
+}
+
+/// A chain render resumes only a state holding exactly its chains, in chain order (the runner's
+/// check before any chain is used): a shard's state (chains of one pair for emlt, every second
+/// chain for pmlt) given as a whole render's checkpoint is refused, where it once rendered the
+/// shard's chains alone as if they were the render.
+#[test]
+fn a_chain_state_without_the_renders_chains_is_refused() {
+    let scene = scene("cornell-box", 64, 48);
+    for (name, params) in [
+        ("emlt", "max_depth = 4\nbootstrap = 2000\nensemble_size = 16\npairs = 2"),
+        ("pmlt", "max_depth = 4\nbootstrap = 2000\nchains = 24"),
+    ] {
+        let integrator = create(name, &toml::from_str(params).expect("params")).expect("integrator");
+        let job = RenderJob { budget: Budget::SamplesPerPixel(4), seed: 7, threads: 2 };
+        let shard = Session { shard: Some(Shard { index: 0, count: 2 }), ..Session::default() };
+        let mut state = integrator.render_session(&scene, &job, &NoProgress, &shard).expect("shard").state;
+        state.units = None;
+        state.complete = false;
+        state.passes_done = 1;
+        let resume = Session { resume: Some(&state), ..Session::default() };
+        let err = integrator.render_session(&scene, &job, &NoProgress, &resume).err().expect("refused");
+        assert!(err.to_string().contains("chains are not the render's"), "{name}: {err}");
+    }
+}
+
+/// An integrator that renders only whole: it implements `render` (here by a path tracer's) and
+/// none of the session methods, so it says so (`supports_sessions`), and a checkpointed render,
+/// a restored output and a merge of it are refused with `no_state`'s message, the one the CLI
+/// prints for `--checkpoint`, `--shard` and resume of such an integrator.
+#[test]
+fn an_integrator_without_sessions_refuses_them() {
+    struct Whole(Box<dyn Integrator>);
+    impl Integrator for Whole {
+        fn name(&self) -> &'static str {
+            "whole"
+        }
+        fn settings_json(&self) -> serde_json::Value {
+            serde_json::Value::Null
+        }
+        fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
+            self.0.render(scene, job, progress)
+        }
+        fn supports_sessions(&self) -> bool {
+            false
+        }
+    }
+    let whole = Whole(create("pt", &toml::Table::new()).expect("pt"));
+    let scene = scene("cornell-box", 16, 12);
+    let job = RenderJob { budget: Budget::SamplesPerPixel(1), seed: 1, threads: 1 };
+    assert!(whole.render(&scene, &job, &NoProgress).is_ok(), "a whole render works");
+    let message = "the whole integrator cannot be interrupted and resumed, checkpointed or sharded";
+    let refused = whole.render_session(&scene, &job, &NoProgress, &Session::default()).err().expect("refused");
+    assert!(refused.to_string().contains(message), "{refused}");
+    let merged = whole.merge_parts(&[]).expect_err("no merge");
+    assert!(merged.to_string().contains(message), "{merged}");
 }

@@ -545,3 +545,51 @@ fn a_rewritten_chain_state_never_crashes() {
         }
     }
 }
+
+/// The path-space chains (pmlt, emlt) restored from a rewritten state given a valid checksum:
+/// at 48 places spread over the part, a NaN (f32 and f64 bit patterns), an infinity or a huge
+/// count written over the bytes there; every resume exits 0 or with one `error: ...` line, never
+/// a crash: a restored path's vertices, roles and values are range-checked before they become
+/// rays (`ChainUnit::check_restored`).
+#[test]
+fn a_rewritten_path_space_state_never_crashes() {
+    use plexus::state::StateFile;
+    let dir = temp_dir("trust-path-state");
+    let d = dir.path();
+    std::fs::write(d.join("s.toml"), tiny_scene("[16, 12]", "")).unwrap();
+    for (integrator, settings) in [
+        ("pmlt", &["--set", "chains=4", "--set", "bootstrap=2000", "--set", "max_depth=3"][..]),
+        ("emlt", &["--set", "ensemble_size=4", "--set", "bootstrap=2000", "--set", "max_depth=3"][..]),
+    ] {
+        let args = ["render", "s.toml", "--integrator", integrator, "--spp", "64", "--threads", "1", "--out", "a.exr"];
+        let o = plexus_within(&[&args[..], settings, &["--stop-at-pass", "1"]].concat(), d, 60);
+        assert_eq!(o.status.code(), Some(130), "{integrator}: {}", stderr(&o));
+        let original = StateFile::read(&d.join("a.pxstate")).unwrap();
+        let len = original.state.part.len();
+        assert!(len > 64, "{integrator}: a part of {len} bytes");
+        let patterns: [&[u8]; 4] = [
+            &f32::NAN.to_le_bytes(),
+            &f64::NAN.to_le_bytes(),
+            &f32::INFINITY.to_le_bytes(),
+            &(1u64 << 60).to_le_bytes(),
+        ];
+        for k in 0..48 {
+            let at = (len - 8) * k / 47;
+            let pattern = patterns[k % patterns.len()];
+            let mut file = original.clone();
+            file.state.part[at..at + pattern.len()].copy_from_slice(pattern);
+            file.write(&d.join("b.pxstate")).unwrap();
+            let o = plexus_within(&["resume", "b.pxstate", "--out", "b.exr"], d, 60);
+            let err = stderr(&o);
+            match o.status.code() {
+                Some(0) => {}
+                Some(2) => {
+                    let errors: Vec<&str> =
+                        err.lines().filter(|l| !l.starts_with("resume b.pxstate: writes")).collect();
+                    assert!(errors.len() == 1 && errors[0].starts_with("error: "), "{integrator} byte {at}: {err}");
+                }
+                other => panic!("{integrator} byte {at}: exit {other:?}: {err}"),
+            }
+        }
+    }
+}

@@ -352,7 +352,7 @@ fn check_tree(bvh: &Bvh, sphere: &Arc<TriangleMesh>) {
 #[cfg(target_os = "linux")]
 #[test]
 fn ray_arrays_ask_for_huge_pages() {
-    use crate::huge_pages::{advised_for_huge_pages, HUGE_PAGE, HUGE_PAGE_ARRAY_BYTES, HUGE_PAGE_MIN_BYTES};
+    use crate::process::huge_pages::{advised_for_huge_pages, HUGE_PAGE, HUGE_PAGE_ARRAY_BYTES, HUGE_PAGE_MIN_BYTES};
     let sphere = icosphere(7); // 327,680 triangles: every array over 1 MiB
     let bvh = Bvh::build(std::slice::from_ref(&sphere));
     let arrays = [

@@ -64,6 +64,17 @@ pub struct Vertex {
 }
 
 impl Vertex {
+    /// Whether a vertex read from a state file (untrusted numbers) can be used in `scene`: finite
+    /// geometry, and a material and emitter the scene has (its vertices become rays and lookups).
+    pub fn is_valid_in(&self, scene: &Scene) -> bool {
+        [self.p, self.p_error, self.ng, self.frame.s, self.frame.t, self.frame.n, self.wo, self.dir]
+            .iter()
+            .all(|x| x.is_finite())
+            && self.uv.is_finite()
+            && (self.material as usize) < scene.materials.len().max(1)
+            && self.light.is_none_or(|l| (l as usize) < scene.lights.len())
+    }
+
     fn blank(kind: VertexKind, mode: TransportMode) -> Vertex {
         Vertex {
             kind,

@@ -13,6 +13,16 @@ use crate::sampling::{PixelSampler, Rng, SamplerKind};
 use crate::state::{RenderState, Session, StateError};
 use crate::stats::Counters;
 
+/// The film's normalisation for `spp` samples in every pixel: 1/spp (0 before any sample), for
+/// the final image, previews and a state's image alike (the chains' is `chains::chain_scale`).
+fn per_sample_scale(spp: u64) -> f64 {
+    if spp > 0 {
+        1.0 / spp as f64
+    } else {
+        0.0
+    }
+}
+
 /// Side length in pixels of the square tiles image-space integrators split the film into.
 pub const TILE_SIZE: u32 = 16;
 
@@ -179,7 +189,7 @@ impl ImagePart {
     pub fn output_of_state(state: &RenderState) -> Result<RenderOutput, RenderError> {
         let part: ImagePart = crate::state::decode(&state.part)?;
         let film = state_film(state);
-        let scale = if part.spp_done > 0 { 1.0 / part.spp_done as f64 } else { 0.0 };
+        let scale = per_sample_scale(part.spp_done);
         Ok(RenderOutput {
             image: film.to_image(scale),
             layers: Vec::new(),
@@ -390,7 +400,7 @@ impl<'a> ImageRender<'a> {
         let kind = self.sampler;
         let preview = |at: &PassBoundary<'_, Tile, S>| {
             let spp = plan.spp_in_set(set, at.passes_done);
-            at.film.to_image(if spp > 0 { 1.0 / spp as f64 } else { 0.0 })
+            at.film.to_image(per_sample_scale(spp))
         };
         let merged_counters = |slots: &[Slot<S>]| {
             let mut counters = Counters::default();
@@ -434,9 +444,10 @@ impl<'a> ImageRender<'a> {
             Some(&preview),
             self.session.control,
             self.session.checkpoint.is_some().then_some(&checkpoint as &CheckpointHook<'_, Tile, S>),
+            None,
         );
         let spp = plan.spp_in_set(set, out.passes);
-        let scale = if spp > 0 { 1.0 / spp as f64 } else { 0.0 };
+        let scale = per_sample_scale(spp);
         let wall_time = self.driver.clock().now().saturating_sub(self.started);
         let state = self.save.then(|| {
             let mut state = self.state_at(out.passes, &out.film, out.counters.clone(), wall_time);

@@ -7,7 +7,7 @@ use std::rc::Rc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::settings::EmltSettings;
 use super::similarity::{inverse_length2, place, places_similarity, Place};
@@ -37,8 +37,8 @@ pub struct GuideCounts {
 /// Bins of `GuideCounts::alpha_bins`.
 pub const ALPHA_BINS: usize = 5;
 
-/// The plain-number copy of [`GuideCounts`] for the JSON report.
-#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+/// The plain-number copy of [`GuideCounts`] for the JSON report and render states.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct GuideReport {
     pub name: String,
     pub guided: u64,
@@ -50,6 +50,23 @@ pub struct GuideReport {
     pub alpha_mean: f64,
     /// Proposals by where α is between α_s (first bin) and α_l (last) in fifths.
     pub alpha_histogram: [u64; ALPHA_BINS],
+}
+
+impl GuideReport {
+    /// Adds another shard's or session's counts of the same strategy (α's mean weighted by the
+    /// proposals).
+    pub fn absorb(&mut self, other: &GuideReport) {
+        let alpha_sum = self.alpha_mean * self.alpha_proposals as f64 + other.alpha_mean * other.alpha_proposals as f64;
+        self.guided += other.guided;
+        self.fallback += other.fallback;
+        self.signature_changed += other.signature_changed;
+        self.similarity_seconds += other.similarity_seconds;
+        self.alpha_proposals += other.alpha_proposals;
+        self.alpha_mean = alpha_sum / self.alpha_proposals.max(1) as f64;
+        for (bin, n) in self.alpha_histogram.iter_mut().zip(other.alpha_histogram) {
+            *bin += n;
+        }
+    }
 }
 
 impl GuideCounts {

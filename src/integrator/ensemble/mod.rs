@@ -20,7 +20,7 @@
 pub mod anisotropic;
 pub mod anisotropic_path;
 pub mod directional;
-pub mod environment;
+pub mod environment_perturbation;
 pub mod guide;
 pub mod kernel;
 pub mod linear;

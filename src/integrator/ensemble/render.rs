@@ -1,45 +1,63 @@
-//! `integrator = "emlt"`: Algorithm 1 of the paper on the path-space chain.
+//! `integrator = "emlt"`: Algorithm 1 of the paper on the path-space chain, run by the chain
+//! runner (`integrator::driver::run_chains`) as pmlt is.
 //!
 //! - **Bootstrap and ensembles** (Sec. 3.4): pmlt's BDPT bootstrap estimates b; the 2|X| chains
-//!   (X = chains 0 … |X| − 1, Y the rest) are started by resampling it, exactly as pmlt starts its
-//!   chains (`path_space::chain`), each chain with its own stream from (seed, chain index).
-//! - **Iterations** (Algorithm 1): every chain of X takes `it` = max(1, ⌊W·H/(|X| + |Y|)⌋) steps of
-//!   pmlt's Metropolis–Hastings `step` (the paper's ⌊W·H/(|X|+|Y|)⌋ is 0 for images smaller than the
-//!   ensembles) with the strategies bidirectional, linear lens, linear caustic, linear
-//!   multi-chain, anisotropic path and environment (`EmltSettings::perturbations`
-//!   switches them), the guided ones
-//!   reading Y (its paths and its tree, rebuilt here at each swap, `tree`); then X and Y swap. X's
-//!   chains run in parallel on the driver as its units, Y fixed: the complementary split that
-//!   keeps the parallel update valid (`toy` module docs). Splats are pmlt's expected values.
-//! - **Normalisation**: as pmlt, the film times b·P/N, N the iterations of all chains.
+//!   of a pair (X = its chains 0 … |X| − 1, Y the rest) are started by resampling it, exactly as
+//!   pmlt starts its chains (`path_space::chain`), each chain with its own stream from (seed, chain
+//!   index). A render has K = `pairs` independent pairs (1 by default): pair k's chains are chains
+//!   2|X|·k … 2|X|·(k + 1) − 1 of the render, so each pair has its own streams.
+//! - **Iterations** (Algorithm 1): a pass of the runner is a half-iteration of every pair: every
+//!   chain of X takes `it` = max(1, ⌊W·H/(|X| + |Y|)⌋) steps of pmlt's Metropolis–Hastings
+//!   `step` (the paper's ⌊W·H/(|X|+|Y|)⌋ is 0 for images smaller than the ensembles) with the
+//!   strategies bidirectional, linear lens, linear caustic, linear multi-chain, anisotropic path and
+//!   environment (`EmltSettings::perturbations` switches them), the guided ones reading Y (its
+//!   paths and its tree, built before the pass, `tree`); after the pass X and Y swap (pass p's X
+//!   is the first half of each pair's chains when p is even). X's chains run in parallel on the
+//!   driver as its units, Y fixed: the complementary split that keeps the parallel update valid
+//!   (`toy` module docs). Splats are pmlt's expected values, pair k's into its own layer k of the
+//!   film.
+//! - **Normalisation**: as pmlt, b·P/N (`driver::chain_scale`), N the iterations of all chains of
+//!   all pairs, applied to the pairs' layers added in pair order: the pairs' mean.
+//! - **Sessions**: a pass boundary is a swap, where every chain is a path-space chain's state
+//!   (stream and path), so checkpoints, resume and shards are the runner's. A shard `k/N` renders
+//!   the pairs k, k + N, …; its film holds only their layers, so the shards' films add up (with
+//!   zeros elsewhere, which adds nothing) to the K-pair render's film bit for bit.
 //!
-//! Determinism: a chain's proposals read only its own stream, its path and Y (fixed during the
-//! half-iteration); the driver applies the chains' splats in chain order. So the image depends on
-//! the seed and the settings only, not on the thread count.
+//! Determinism: a chain's proposals read only its own stream, its path and its pair's Y (fixed
+//! during the half-iteration); the driver applies the chains' splats in chain order. So the image
+//! depends on the seed and the settings only, not on the thread count.
 
-use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, OnceLock, RwLock};
+use std::time::Instant;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::anisotropic_path::{AnisotropicPath, GuideContext};
-use super::environment::Environment;
+use super::environment_perturbation::EnvironmentPerturbation;
 use super::guide::{GuideCounts, GuideReport, GuideView};
 use super::linear::{GuidedKernel, LinearCaustic, LinearLens, LinearMultiChain};
 use super::settings::EmltSettings;
-use crate::film::Accumulator;
-use crate::integrator::driver::{Driver, PassSet, Passes, RunControl, RunStart, Slot};
+use crate::film::{Accumulator, Image};
+use crate::integrator::bdpt::BdptContext;
+use crate::integrator::driver::{
+    chain_output_of_state, chain_scale, layers_to_image, merge_chain_parts, run_chains, ChainIntegrator, ChainRender,
+    ChainRun, ChainStats, Clock, Driver, PassEdge, Passes, Slot, Tally, WallClock,
+};
 use crate::integrator::path_space::bidirectional::{Bidirectional, LengthKernel};
 use crate::integrator::path_space::caustic::CausticKernel;
-use crate::integrator::path_space::chain::{new_stats, step, ChainUnit};
+use crate::integrator::path_space::chain::{new_stats, step, ChainUnit, SlotState};
 use crate::integrator::path_space::kernel::RasterKernel;
 use crate::integrator::path_space::multichain::MultiChainKernel;
+use crate::integrator::path_space::session::{
+    iterations, merged_stats, path_output, report_acceptance, BootstrapPart, PmltStats,
+};
 use crate::integrator::path_space::{Entry, PathContext, Pmlt, PmltSettings, StrategySet};
-use crate::integrator::pss::bootstrap::run_bootstrap;
-use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
+use crate::integrator::{Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::Distribution1D;
 use crate::scene::Scene;
-use crate::stats::AcceptanceCount;
+use crate::state::{RenderState, Session, Shard, StateError};
+use crate::stats::Counters;
 
 /// The guided strategies with counts: linear lens, linear caustic, linear multi-chain, anisotropic
 /// path (whose counts are per fit: Gaussian fits as guided, degenerate ones as fallbacks) and
@@ -65,11 +83,13 @@ pub struct Emlt {
 #[derive(Debug, Default, Serialize)]
 pub struct EnsembleReport {
     pub ensemble_size: u64,
+    /// K, the independent X/Y pairs.
+    pub pairs: u64,
     pub iterations_per_swap: u64,
     pub swaps: u64,
     pub tree_rebuild_seconds: f64,
-    /// Signatures (buckets) in the last tree built.
-    pub signatures: usize,
+    /// Signatures (buckets) in the last tree built (the largest over the pairs).
+    pub signatures: u64,
     pub guided: Vec<GuideReport>,
     /// Guided proposals over all proposals of the guided strategies (guided + fallback).
     pub guided_share: f64,
@@ -86,7 +106,7 @@ impl Emlt {
         let settings = PmltSettings {
             max_depth: s.max_depth,
             bootstrap: s.bootstrap,
-            chains: 2 * s.ensemble_size,
+            chains: 2 * s.ensemble_size * s.pairs,
             mis: s.mis,
             bidirectional: s.bidirectional,
             ..PmltSettings::default()
@@ -144,12 +164,91 @@ impl Emlt {
                     weight: weights[3],
                 }),
                 Box::new(Entry {
-                    strategy: Environment { kernel: s.environment_kernel },
+                    strategy: EnvironmentPerturbation { kernel: s.environment_kernel },
                     kernel: GuideContext { view: view.clone(), counts: counts[4].clone() },
                     weight: weights[4],
                 }),
             ],
         }
+    }
+}
+
+/// emlt's statistics in a state: pmlt's, the guided strategies' counts (in `GUIDED_NAMES`
+/// order) and the trees'.
+#[derive(Clone, Serialize, Deserialize)]
+pub struct EmltStats {
+    path: PmltStats,
+    guided: Vec<GuideReport>,
+    tree_rebuild_seconds: f64,
+    /// Signatures in the last trees built (the largest over the pairs).
+    signatures: u64,
+}
+
+impl ChainStats for EmltStats {
+    fn absorb(&mut self, other: &EmltStats) {
+        self.path.absorb(&other.path);
+        for (a, b) in self.guided.iter_mut().zip(&other.guided) {
+            a.absorb(b);
+        }
+        self.tree_rebuild_seconds += other.tree_rebuild_seconds;
+        self.signatures = self.signatures.max(other.signatures);
+    }
+
+    fn clear_times(&mut self) {
+        self.tree_rebuild_seconds = 0.0;
+        for g in &mut self.guided {
+            g.similarity_seconds = 0.0;
+        }
+    }
+}
+
+/// The guided strategies' names in the statistics, in the order of their counts.
+const GUIDED_NAMES: [&str; GUIDED_STRATEGIES] =
+    ["linear_lens", "linear_caustic", "linear_multi_chain", "anisotropic_path", "environment"];
+
+impl ChainIntegrator for Emlt {
+    type Unit = ChainUnit;
+    type Boot = BootstrapPart;
+    type Stats = EmltStats;
+
+    fn unit_index(unit: &ChainUnit) -> u64 {
+        unit.index
+    }
+
+    fn chain_output(
+        &self,
+        film: &Accumulator,
+        _units: &[ChainUnit],
+        stats: EmltStats,
+        boot: &BootstrapPart,
+        tally: Tally,
+    ) -> Result<RenderOutput, RenderError> {
+        let pairs = self.settings.pairs as usize;
+        if !film.height.is_multiple_of(pairs) {
+            return Err(
+                StateError::Mismatch("the state's film does not hold one layer per ensemble pair".into()).into()
+            );
+        }
+        let pixels = film.width as u64 * (film.height / pairs) as u64;
+        let image = |n| layers_to_image(film, pairs, chain_scale(boot.b(), pixels, n));
+        let (passes, segment) = (tally.passes, tally.segment);
+        let e = self.settings.ensemble_size;
+        let mut output = path_output(image, pixels, stats.path, boot, 2 * e * self.settings.pairs, tally);
+        let (g, f) = stats.guided.iter().fold((0, 0), |(g, f), r| (g + r.guided, f + r.fallback));
+        let report = EnsembleReport {
+            ensemble_size: e,
+            pairs: self.settings.pairs,
+            iterations_per_swap: segment,
+            swaps: passes,
+            tree_rebuild_seconds: stats.tree_rebuild_seconds,
+            signatures: stats.signatures,
+            guided: stats.guided,
+            guided_share: if g + f > 0 { g as f64 / (g + f) as f64 } else { 0.0 },
+        };
+        if let Some(map) = output.extra_stats.as_object_mut() {
+            map.insert("ensemble".into(), serde_json::to_value(&report).unwrap_or(serde_json::Value::Null));
+        }
+        Ok(output)
     }
 }
 
@@ -162,186 +261,309 @@ impl Integrator for Emlt {
         serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
     }
 
-    fn supports_sessions(&self) -> bool {
-        false
+    fn run_session(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+        save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
+        let run = self.render_on_clock(scene, job, progress, session, save, Arc::new(WallClock::new()))?;
+        Ok((run.output, run.state))
     }
 
-    fn render(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<RenderOutput, RenderError> {
-        let start_time = Instant::now();
+    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
+        chain_output_of_state(self, state)
+    }
+
+    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
+        merge_chain_parts::<Emlt>(parts)
+    }
+}
+
+impl Emlt {
+    /// The render under `session` with its time read from `clock` (the wall clock in
+    /// `run_session`; a fake one in tests of the time budget), with its unnormalised film and,
+    /// with `save`, the state reached. A shard `k/N` must hold a pair: k < `pairs`.
+    pub fn render_on_clock(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+        save: bool,
+        clock: Arc<dyn Clock>,
+    ) -> Result<ChainRun, RenderError> {
+        if let Some(shard) = session.shard.filter(|s| s.index >= self.settings.pairs) {
+            return Err(StateError::Mismatch(format!(
+                "emlt shard {shard} would hold none of the render's {} ensemble pairs: emlt is sharded by pairs, \
+                 so shard it at most `pairs` ways (--set pairs=N)",
+                self.settings.pairs
+            ))
+            .into());
+        }
+        run_chains(&EmltRender::new(self, scene, job, session.shard), job, progress, session, save, clock)
+    }
+}
+
+/// One emlt render of a scene (`ChainRender`; module docs).
+struct EmltRender<'a> {
+    emlt: &'a Emlt,
+    /// The pmlt whose bootstrap, chain start and slots this render shares.
+    pmlt: Pmlt,
+    scene: &'a Scene,
+    ctx: PathContext<'a>,
+    bctx: BdptContext<'a>,
+    /// A set over an empty view: the names and order of the statistics.
+    names: StrategySet,
+    counts: [Arc<GuideCounts>; GUIDED_STRATEGIES],
+    seed: u64,
+    shard: Option<Shard>,
+    /// |X| = |Y|.
+    e: u64,
+    /// Steps per chain of X and half-iteration.
+    it: u64,
+    /// During a pass: per pair of the render here (in pair order), Y's view and the strategies
+    /// reading it (`between_passes` builds them before the pass and takes them apart after).
+    guides: RwLock<Vec<(Arc<GuideView>, StrategySet)>>,
+    /// Seconds in tree builds, and the largest signature count of the last trees.
+    trees: Mutex<(f64, u64)>,
+    /// Chains that found no start path: counted at their start, or restored from a state.
+    unstarted: AtomicU64,
+    /// The bootstrap's b, once known, for previews.
+    boot_b: OnceLock<f64>,
+}
+
+impl<'a> EmltRender<'a> {
+    fn new(emlt: &'a Emlt, scene: &'a Scene, job: &RenderJob, shard: Option<Shard>) -> EmltRender<'a> {
+        let pmlt = emlt.pmlt();
         let (width, height) = (scene.camera.width, scene.camera.height);
-        let pixels = width as u64 * height as u64;
-        crate::integrator::check_budget(job.budget, width, height, "budget")?;
-        let driver = Driver::new(job, width, height)?;
-        let pmlt = self.pmlt();
-        let max_depth = self.settings.max_depth as usize;
-        let ctx = PathContext { scene, max_depth };
-        let bctx = pmlt.bdpt_context(scene);
-        let e = self.settings.ensemble_size;
         let counts: [Arc<GuideCounts>; GUIDED_STRATEGIES] = Default::default();
-        // A set with an empty view: the names and order of the statistics.
-        let empty = Arc::new(GuideView::new(Vec::new(), &self.settings, width, height));
-        let names = self.strategies(scene, &empty, &counts);
-        drop(empty);
+        let empty = Arc::new(GuideView::new(Vec::new(), &emlt.settings, width, height));
+        let names = emlt.strategies(scene, &empty, &counts);
+        let e = emlt.settings.ensemble_size;
+        EmltRender {
+            emlt,
+            ctx: PathContext { scene, max_depth: emlt.settings.max_depth as usize },
+            bctx: pmlt.bdpt_context(scene),
+            pmlt,
+            scene,
+            names,
+            counts,
+            seed: job.seed,
+            shard,
+            e,
+            it: (width as u64 * height as u64 / (2 * e)).max(1),
+            guides: RwLock::new(Vec::new()),
+            trees: Mutex::new((0.0, 0)),
+            unstarted: AtomicU64::new(0),
+            boot_b: OnceLock::new(),
+        }
+    }
 
-        let time_budget = match job.budget {
-            Budget::Seconds(s) => Some(s),
-            _ => None,
-        };
-        let boot = run_bootstrap(
-            &driver,
-            progress,
-            1,
-            self.settings.bootstrap,
-            time_budget,
-            |_| pmlt.new_slot(&names),
-            |_, i, slot, counters| pmlt.bootstrap_sample(&bctx, job.seed, i, slot, counters, None),
-        );
-        let b = boot.sums[0] / boot.paths.max(1) as f64;
-        let mut counters = boot.counters.clone();
-        let mut stats = new_stats(max_depth, &names);
-        let mut report = EnsembleReport { ensemble_size: e, ..EnsembleReport::default() };
-        let mut film = Accumulator::new(width as usize, height as usize);
-        let mut warnings = Vec::new();
-        if b > 0.0 {
-            // Both ensembles, started in parallel (one driver pass whose units are the chains).
-            let start = Distribution1D::new(&boot.targets[0]);
-            let slots = |_| pmlt.new_slot(&names);
-            let init: Vec<(u64, Option<ChainUnit>)> = (0..2 * e).map(|c| (c, None)).collect();
-            let started = driver.run(
-                init,
-                Passes::Count(1),
-                progress,
-                slots,
-                |_, (c, unit), slot| {
-                    let mut candidates = Vec::new();
-                    let Slot { state, counters, .. } = slot;
-                    *unit = Some(pmlt.start_chain(*c, &start, &ctx, &bctx, job.seed, state, counters, &mut candidates));
-                    0
-                },
-                None,
-            );
-            counters.merge(&started.counters);
-            let mut chains: Vec<ChainUnit> = started.units.into_iter().filter_map(|(_, u)| u).collect();
-            let unstarted = chains.iter().filter(|u| !(u.current.f_star > 0.0)).count();
-            if unstarted > 0 {
-                warnings.push(format!("{unstarted} of {} chains found no start path; they splat nothing", 2 * e));
-            }
-            let mut y: Vec<ChainUnit> = chains.split_off(e as usize);
-            let mut x = chains;
+    fn pairs(&self) -> u64 {
+        self.emlt.settings.pairs
+    }
 
-            let it = (pixels / (2 * e)).max(1);
-            report.iterations_per_swap = it;
-            let halves = match job.budget {
-                Budget::SamplesPerPixel(mpp) => (mpp * pixels).div_ceil(e * it),
-                Budget::Seconds(_) => u64::MAX,
-            };
-            progress.set_total(halves.saturating_mul(e * it));
-            progress.message("mutating");
-            let mut last = Duration::ZERO;
-            // Previews at swaps (the only points where every chain of X has moved the same number
-            // of times), normalised as the final image is.
-            let preview_every = progress.preview_interval().map(Duration::from_secs_f64);
-            let mut last_preview = Instant::now();
-            for half in 0..halves {
-                if let Budget::Seconds(s) = job.budget {
-                    let now = start_time.elapsed();
-                    if half > 0 && (now + last).as_secs_f64() > s {
-                        break;
-                    }
-                }
-                let half_start = Instant::now();
-                // The tree over Y, rebuilt at each swap (Algorithm 1, line 12).
-                let rebuild = Instant::now();
-                let paths = y.iter_mut().map(|u| std::mem::take(&mut u.current)).collect();
-                let view = Arc::new(GuideView::new(paths, &self.settings, width, height));
-                report.tree_rebuild_seconds += rebuild.elapsed().as_secs_f64();
-                report.signatures = view.tree.signatures();
-                let set = self.strategies(scene, &view, &counts);
-                let run_start = RunStart {
-                    units: std::mem::take(&mut x),
-                    next_pass: 0,
-                    film: Some(std::mem::replace(&mut film, Accumulator::new(0, 0))),
-                    saved_slot: None,
-                    passes: PassSet::ALL,
-                };
-                let out = driver.run_from(
-                    run_start,
-                    Passes::Count(1),
-                    progress,
-                    |_| pmlt.new_slot(&set),
-                    |_, unit: &mut ChainUnit, slot| {
-                        let Slot { state, film, counters, .. } = slot;
-                        for _ in 0..it {
-                            step(&ctx, &set, &mut unit.current, &mut unit.rng, &mut state.stats, film, counters);
-                        }
-                        it
-                    },
-                    None,
-                    RunControl::default(),
-                    None,
-                );
-                film = out.film;
-                x = out.units;
-                counters.merge(&out.counters);
-                for s in &out.slot_states {
-                    stats.merge(&s.stats);
-                }
-                drop(set);
-                let view =
-                    Arc::try_unwrap(view).map_err(|_| RenderError::Settings("guide view still shared".into()))?;
-                for (u, p) in y.iter_mut().zip(view.paths) {
-                    u.current = p;
-                }
-                std::mem::swap(&mut x, &mut y);
-                report.swaps += 1;
-                last = half_start.elapsed();
-                if preview_every.is_some_and(|every| last_preview.elapsed() >= every) {
-                    let n: u64 = stats.per_depth.iter().map(|d| d.iterations).sum();
-                    if n > 0 {
-                        progress.preview(&film.to_image(b * pixels as f64 / n as f64));
-                    }
-                    last_preview = Instant::now();
-                }
-            }
+    /// Where Y starts in a pair's chains at pass `pass`: X is the first half at even passes.
+    fn y_offset(&self, pass: u64) -> usize {
+        if pass.is_multiple_of(2) {
+            self.e as usize
         } else {
-            warnings.push(format!(
-                "no bootstrap path ({} BDPT samples) carried light to the camera: the image is black.",
-                boot.paths
-            ));
+            0
         }
+    }
+}
 
-        let n: u64 = stats.per_depth.iter().map(|d| d.iterations).sum();
-        let scale = if n > 0 { b * pixels as f64 / n as f64 } else { 0.0 };
-        let image = film.to_image(scale);
-        let b_depth: Vec<f64> =
-            stats.per_depth.iter().map(|d| if n > 0 { b * d.iterations as f64 / n as f64 } else { 0.0 }).collect();
-        stats.passes = report.swaps;
-        stats.segment_length = report.iterations_per_swap;
-        stats.bootstrap_paths_per_depth = boot.paths;
-        stats.bootstrap_seconds = boot.elapsed.as_secs_f64();
-        stats.warnings = warnings;
-        stats.finish(pixels, &b_depth, &b_depth);
-        for s in stats.strategies.iter().flatten() {
-            counters
-                .strategies
-                .insert(s.name.clone(), AcceptanceCount { proposed: s.selected, accepted: s.accepted as f64 });
+impl ChainRender for EmltRender<'_> {
+    type Integrator = Emlt;
+    type Slot = SlotState;
+    type Start = Distribution1D;
+
+    fn integrator(&self) -> &Emlt {
+        self.emlt
+    }
+
+    fn image_size(&self) -> (u32, u32) {
+        (self.scene.camera.width, self.scene.camera.height)
+    }
+
+    /// One layer per pair.
+    fn film_size(&self) -> Result<(u32, u32), RenderError> {
+        let (width, height) = self.image_size();
+        let stacked = u32::try_from(height as u64 * self.pairs())
+            .map_err(|_| RenderError::FilmTooLarge { width, height: u32::MAX })?;
+        Ok((width, stacked))
+    }
+
+    fn chains(&self) -> u64 {
+        2 * self.e * self.pairs()
+    }
+
+    fn segment(&self) -> u64 {
+        self.it
+    }
+
+    /// Only X's chains move in a pass: half of every pair's.
+    fn mutations_per_pass(&self) -> u64 {
+        self.it * self.e * self.pairs()
+    }
+
+    fn mutations_per_pass_of(&self, units: usize) -> u64 {
+        self.it * (units as u64 / 2)
+    }
+
+    /// A shard holds whole pairs.
+    fn in_shard(&self, chain: u64, shard: Shard) -> bool {
+        shard.contains(chain / (2 * self.e))
+    }
+
+    fn new_slot(&self) -> SlotState {
+        self.pmlt.new_slot(&self.names)
+    }
+
+    fn bootstrap(
+        &self,
+        driver: &Driver,
+        progress: &dyn Progress,
+        time_budget: Option<f64>,
+    ) -> Result<(BootstrapPart, Counters, Option<Distribution1D>), RenderError> {
+        Ok(self.pmlt.run_path_bootstrap(driver, progress, &self.bctx, self.seed, &self.names, time_budget))
+    }
+
+    fn begin(&self, boot: &BootstrapPart) {
+        let _ = self.boot_b.set(boot.b());
+    }
+
+    /// Every chain of the pairs here, started in parallel (one driver pass whose units are the
+    /// chains; a chain's start depends on the seed and its index only).
+    fn start_chains(
+        &self,
+        driver: &Driver,
+        start: &Distribution1D,
+        chains: &[u64],
+        progress: &dyn Progress,
+        counters: &mut Counters,
+    ) -> Result<Vec<ChainUnit>, RenderError> {
+        let init: Vec<(u64, Option<ChainUnit>)> = chains.iter().map(|&c| (c, None)).collect();
+        let started = driver.run(
+            init,
+            Passes::Count(1),
+            progress,
+            |_| self.new_slot(),
+            |_, (c, unit), slot| {
+                let mut candidates = Vec::new();
+                let Slot { state, counters, .. } = slot;
+                let (ctx, bctx) = (&self.ctx, &self.bctx);
+                *unit = Some(self.pmlt.start_chain(*c, start, ctx, bctx, self.seed, state, counters, &mut candidates));
+                0
+            },
+            None,
+        );
+        counters.merge(&started.counters);
+        let units: Vec<ChainUnit> = started.units.into_iter().filter_map(|(_, u)| u).collect();
+        let unstarted = units.iter().filter(|u| !(u.current.f_star > 0.0)).count() as u64;
+        self.unstarted.store(unstarted, Ordering::Relaxed);
+        Ok(units)
+    }
+
+    fn check_restored(&self, unit: &ChainUnit) -> Result<(), StateError> {
+        unit.check_restored(&self.ctx, self.chains())
+    }
+
+    fn empty_stats(&self) -> EmltStats {
+        EmltStats {
+            path: PmltStats { unstarted: 0, stats: new_stats(self.ctx.max_depth, &self.names) },
+            guided: GUIDED_NAMES
+                .iter()
+                .map(|name| GuideReport { name: name.to_string(), ..GuideReport::default() })
+                .collect(),
+            tree_rebuild_seconds: 0.0,
+            signatures: 0,
         }
-        report.guided = vec![
-            counts[0].report("linear_lens"),
-            counts[1].report("linear_caustic"),
-            counts[2].report("linear_multi_chain"),
-            counts[3].report("anisotropic_path"),
-            counts[4].report("environment"),
-        ];
-        let (g, f) = report.guided.iter().fold((0, 0), |(g, f), r| (g + r.guided, f + r.fallback));
-        report.guided_share = if g + f > 0 { g as f64 / (g + f) as f64 } else { 0.0 };
-        let mut extra = serde_json::to_value(&stats).unwrap_or(serde_json::Value::Null);
-        if let Some(map) = extra.as_object_mut() {
-            if b > 0.0 {
-                map.insert("b".into(), serde_json::json!(b));
+    }
+
+    fn stats(&self, slots: &[&SlotState], _units: &[ChainUnit]) -> EmltStats {
+        let (tree_rebuild_seconds, signatures) = *self.trees.lock().unwrap_or_else(|e| e.into_inner());
+        EmltStats {
+            path: PmltStats { unstarted: self.unstarted.load(Ordering::Relaxed), stats: merged_stats(slots) },
+            guided: self.counts.iter().zip(GUIDED_NAMES).map(|(c, name)| c.report(name)).collect(),
+            tree_rebuild_seconds,
+            signatures,
+        }
+    }
+
+    fn restore_slot(&self, stats: &EmltStats) -> SlotState {
+        self.unstarted.store(stats.path.unstarted, Ordering::Relaxed);
+        for (counts, saved) in self.counts.iter().zip(&stats.guided) {
+            counts.add(saved);
+        }
+        *self.trees.lock().unwrap_or_else(|e| e.into_inner()) = (stats.tree_rebuild_seconds, stats.signatures);
+        let mut slot = self.new_slot();
+        slot.stats = stats.path.stats.clone();
+        slot
+    }
+
+    /// `it` steps of a chain of X, with its pair's strategies; a chain of Y waits.
+    fn run_segment(&self, pass: u64, unit: &mut ChainUnit, slot: &mut Slot<SlotState>, progress: &dyn Progress) -> u64 {
+        let pair = unit.index / (2 * self.e);
+        let in_x = (unit.index % (2 * self.e) < self.e) == pass.is_multiple_of(2);
+        if !in_x {
+            return 0;
+        }
+        let guides = self.guides.read().unwrap_or_else(|e| e.into_inner());
+        // The pair's place among the pairs here: a shard k/N holds pairs k, k + N, ...
+        let here = self.shard.map_or(pair, |s| pair / s.count) as usize;
+        let Some((_, set)) = guides.get(here) else { return 0 };
+        let Slot { index, state, film, counters } = slot;
+        for _ in 0..self.it {
+            step(&self.ctx, set, &mut unit.current, &mut unit.rng, &mut state.stats, film, pair as usize, counters);
+        }
+        if *index == 0 {
+            report_acceptance(&state.stats, progress);
+        }
+        self.it
+    }
+
+    /// Before a pass, every pair's tree over its Y (Algorithm 1, line 12: Y's paths move into the
+    /// view the guided strategies read); after it, Y's paths back into their chains.
+    fn between_passes(&self, edge: PassEdge, pass: u64, units: &mut [ChainUnit]) {
+        let e = self.e as usize;
+        let y = self.y_offset(pass)..self.y_offset(pass) + e;
+        let (width, height) = self.image_size();
+        let mut guides = self.guides.write().unwrap_or_else(|e| e.into_inner());
+        match edge {
+            PassEdge::Before => {
+                let started = Instant::now();
+                let mut signatures = 0;
+                for pair in units.chunks_mut(2 * e) {
+                    let paths = pair[y.clone()].iter_mut().map(|u| std::mem::take(&mut u.current)).collect();
+                    let view = Arc::new(GuideView::new(paths, &self.emlt.settings, width, height));
+                    signatures = signatures.max(view.tree.signatures() as u64);
+                    let set = self.emlt.strategies(self.scene, &view, &self.counts);
+                    guides.push((view, set));
+                }
+                let mut trees = self.trees.lock().unwrap_or_else(|e| e.into_inner());
+                *trees = (trees.0 + started.elapsed().as_secs_f64(), signatures);
             }
-            map.insert("ensemble".into(), serde_json::to_value(&report).unwrap_or(serde_json::Value::Null));
+            PassEdge::After => {
+                for ((view, set), pair) in std::mem::take(&mut *guides).into_iter().zip(units.chunks_mut(2 * e)) {
+                    // The set's kernels hold the view: dropped, it is the view's only owner.
+                    drop(set);
+                    let paths = Arc::try_unwrap(view).map(|v| v.paths).unwrap_or_else(|v| v.paths.clone());
+                    for (unit, path) in pair[y.clone()].iter_mut().zip(paths) {
+                        unit.current = path;
+                    }
+                }
+            }
         }
-        Ok(RenderOutput { image, layers: Vec::new(), counters, wall_time: start_time.elapsed(), extra_stats: extra })
+    }
+
+    fn preview(&self, film: &Accumulator, _units: &[ChainUnit], slots: &[&SlotState]) -> Image {
+        let n: u64 = slots.iter().map(|s| iterations(&s.stats)).sum();
+        let (w, h) = self.image_size();
+        let b = self.boot_b.get().copied().unwrap_or(0.0);
+        layers_to_image(film, self.pairs() as usize, chain_scale(b, w as u64 * h as u64, n))
     }
 }

@@ -4,10 +4,18 @@
 use serde::{Deserialize, Serialize};
 
 use super::directional::KAPPA_MAX;
-pub use super::environment::EnvironmentKernel;
 use crate::integrator::bdpt::MisHeuristic;
 use crate::integrator::pss::settings::{MAX_BOOTSTRAP, MAX_CHAINS, MAX_DEPTH};
 use crate::integrator::{settings_from_table, RenderError};
+
+/// Which guided kernel the environment perturbation uses (`environment`'s module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EnvironmentKernel {
+    #[default]
+    Directional,
+    Hemispherical,
+}
 
 /// Settings of ensemble MLT.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -20,6 +28,10 @@ pub struct EmltSettings {
     pub bootstrap: u64,
     /// Paths in each of the ensembles X and Y (16,384, the paper's Sec. 3.4).
     pub ensemble_size: u64,
+    /// K, the independent X/Y ensemble pairs of the render (1): pair k's chains have their own
+    /// streams, and its film is its own layer, so a render sharded by pairs (`--shard k/K`)
+    /// merges into exactly the K-pair render. The image is the pairs' mean.
+    pub pairs: u64,
     /// M, the size of the subset Υ of the complementary ensemble a guided perturbation draws its
     /// guide from (32; `tree` module docs say why: the paper leaves it to its supplement).
     pub subset_size: u32,
@@ -75,6 +87,7 @@ impl Default for EmltSettings {
             max_depth: 8,
             bootstrap: 100_000,
             ensemble_size: 16_384,
+            pairs: 1,
             subset_size: 32,
             mis: MisHeuristic::Balance,
             bidirectional: 1.0,
@@ -108,6 +121,14 @@ impl EmltSettings {
         }
         if !(1..=MAX_CHAINS / 2).contains(&s.ensemble_size) {
             return bad(format!("ensemble_size = {}: expected 1 ..= {} (2^23)", s.ensemble_size, MAX_CHAINS / 2));
+        }
+        // Every pair's 2·|X| chains are chains of the render: together at most `MAX_CHAINS`.
+        if !(1..=MAX_CHAINS / (2 * s.ensemble_size)).contains(&s.pairs) {
+            return bad(format!(
+                "pairs = {}: expected 1 ..= {} (2 × ensemble_size × pairs chains at most 2^24)",
+                s.pairs,
+                MAX_CHAINS / (2 * s.ensemble_size)
+            ));
         }
         if !(2..=4096).contains(&s.subset_size) {
             return bad(format!("subset_size = {}: expected 2 ..= 4096", s.subset_size));
@@ -188,6 +209,8 @@ mod tests {
         assert_eq!(s, EmltSettings::default());
         for (bad, needle) in [
             ("ensemble_size = 0", "ensemble_size"),
+            ("pairs = 0", "pairs"),
+            ("ensemble_size = 8388608\npairs = 2", "pairs"),
             ("subset_size = 1", "subset_size"),
             ("bidirectional = 0.0", "bidirectional"),
             ("linear_lens = -1.0", "linear_lens"),

@@ -4,7 +4,7 @@
 //! O(1) in |Y|.
 //!
 //! # Interaction types and the roughness threshold
-//! The types are the path's own `Interaction`s (`path_space::state::material_interaction`):
+//! The types are the path's own `Interaction`s (`path_space::vertex::material_interaction`):
 //! specular = a delta lobe (mirror, smooth dielectric: roughness exactly 0, the only surfaces the
 //! specular-chain retrace follows deterministically); glossy = any other non-Lambertian BSDF (rough
 //! conductor, rough plastic, rough dielectric) at any roughness α > 0; diffuse = Lambertian. The

@@ -51,7 +51,7 @@
 use super::density::{
     density_emitted, density_emitter, density_next, sample_emitter, sample_next, trace_emitted, Side,
 };
-use super::state::{PathState, PathVertex};
+use super::path_state::{PathState, PathVertex};
 use super::strategy::Strategy;
 use super::PathContext;
 use crate::integrator::bdpt::{Vertex, VertexKind};

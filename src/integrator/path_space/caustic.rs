@@ -27,10 +27,10 @@
 //! (`density` module docs; `retrace::retrace_jacobian` includes it).
 
 use super::kernel::{DirectionKernel, RasterKernel};
+use super::path_state::{Interaction, PathState, PathVertex};
 #[cfg(any(test, feature = "testing"))]
 use super::retrace::retrace_measure_factor;
 use super::retrace::{first_non_specular, retrace, retrace_jacobian};
-use super::state::{Interaction, PathState, PathVertex};
 use super::strategy::Strategy;
 use super::PathContext;
 use crate::camera::Camera;

@@ -25,9 +25,9 @@ use super::caustic::{Caustic, CausticKernel};
 use super::kernel::DirectionKernel;
 use super::lens::Lens;
 use super::multichain::{MultiChain, MultiChainKernel};
+use super::path_state::PathState;
 use super::portal::PortalPerturbation;
 use super::settings::PmltSettings;
-use super::state::PathState;
 use super::strategy::{Entry, Mutation, StrategySet};
 use super::PathContext;
 use serde::{Deserialize, Serialize};
@@ -37,6 +37,7 @@ use crate::integrator::bdpt::path::full_path;
 use crate::integrator::bdpt::{
     connect_all, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch, FilmRegion, Vertex,
 };
+use crate::integrator::driver::expected_value_splats;
 use crate::integrator::pss::stats::{MltStats, StrategyStats};
 use crate::integrator::{RenderError, RenderOutput};
 use crate::sampling::{Distribution1D, Rng};
@@ -76,6 +77,33 @@ pub struct ChainUnit {
     pub current: PathState,
 }
 
+impl ChainUnit {
+    /// Checks a chain restored from a state file (untrusted numbers) before it is used: its index
+    /// is one of the render's `chains`, and its current path has at most `max_depth` + 2 vertices,
+    /// each valid in the scene (`Vertex::is_valid_in`: its vertices become rays and lookups), a
+    /// raster position on the film and a finite, non-negative f and f*.
+    pub fn check_restored(&self, ctx: &PathContext, chains: u64) -> Result<(), crate::state::StateError> {
+        let bad = |what: &str| crate::state::StateError::Mismatch(format!("chain {} of the state: {what}", self.index));
+        if self.index >= chains {
+            return Err(bad(&format!("an index beyond the render's {chains} chains")));
+        }
+        let c = &self.current;
+        if c.vertices.len() > ctx.max_depth + 2 || !c.vertices.iter().all(|v| v.vertex.is_valid_in(ctx.scene)) {
+            return Err(bad("a current path that is not a path of this scene"));
+        }
+        let camera = &ctx.scene.camera;
+        let on_film = c.raster.x >= 0.0
+            && c.raster.y >= 0.0
+            && c.raster.x <= camera.width as f32
+            && c.raster.y <= camera.height as f32;
+        let f_ok = c.f.is_finite() && c.f.min_element() >= 0.0 && c.f_star.is_finite() && c.f_star >= 0.0;
+        if !(on_film && f_ok) {
+            return Err(bad("a current path with values out of range"));
+        }
+        Ok(())
+    }
+}
+
 /// Per-slot scratch (BDPT subpaths for the bootstrap) and statistics.
 pub(crate) struct SlotState {
     camera: Vec<Vertex>,
@@ -98,8 +126,10 @@ pub fn new_stats(max_depth: usize, set: &StrategySet) -> MltStats {
 }
 
 /// One Metropolis–Hastings iteration of a chain at `current` (module docs): splats ȳ and x̄ with
-/// their expected-value weights into `film`, records the proposal in `stats` (per strategy, per
+/// their expected-value weights into `film`'s image `layer` (`SplatBuffer::splat_in_layer`; 0 for
+/// a film of one image), records the proposal in `stats` (per strategy, per
 /// depth of the current path) and counts the state's depth after the step.
+#[allow(clippy::too_many_arguments)]
 pub fn step(
     ctx: &PathContext,
     set: &StrategySet,
@@ -107,9 +137,11 @@ pub fn step(
     rng: &mut Rng,
     stats: &mut MltStats,
     film: &mut SplatBuffer,
+    layer: usize,
     counters: &mut Counters,
 ) {
     counters.samples += 1;
+    let film = &mut Layer { film, layer, height: ctx.scene.camera.height as usize };
     let depth = current.depth();
     let chosen = set.choose(ctx, current, rng.uniform_f64());
     let mut a = 0.0f64;
@@ -143,12 +175,11 @@ pub fn step(
         }
         proposal = y.map(|y| y.path);
     }
-    if let Some(y) = proposal.as_ref().filter(|_| a > 0.0) {
-        splat(y, a, film);
-    }
-    if a < 1.0 {
-        splat(current, 1.0 - a, film);
-    }
+    expected_value_splats(a, |is_proposal, w| match (is_proposal, proposal.as_ref()) {
+        (true, Some(y)) => splat(y, w, film),
+        (true, None) => {}
+        (false, _) => splat(current, w, film),
+    });
     let accepted = a > 0.0 && rng.uniform_f64() < a;
     if let Some((i, _)) = chosen {
         if let Some(s) = stats.strategies.as_mut().and_then(|s| s.get_mut(i)) {
@@ -180,14 +211,21 @@ fn tally(count: &mut AcceptanceCount, accepted: bool) {
     }
 }
 
+/// One image of a film of stacked images.
+struct Layer<'a> {
+    film: &'a mut SplatBuffer,
+    layer: usize,
+    height: usize,
+}
+
 /// Splats `path` with expected-value weight `w` as w · f/f* (a zero path splats nothing).
-fn splat(path: &PathState, w: f64, film: &mut SplatBuffer) {
+fn splat(path: &PathState, w: f64, film: &mut Layer) {
     if !(w > 0.0) || !(path.f_star > 0.0) {
         return;
     }
     let value = (path.f * (w / path.f_star)).as_vec3();
     if is_finite(value) {
-        film.splat(path.raster, value);
+        film.film.splat_in_layer(path.raster, film.layer, film.height, value);
     }
 }
 

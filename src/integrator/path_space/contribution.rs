@@ -21,7 +21,7 @@
 
 use glam::{DVec3, Vec2};
 
-use super::state::PathVertex;
+use super::vertex::PathVertex;
 use super::PathContext;
 use crate::integrator::bdpt::mutually_visible;
 use crate::material::TransportMode;

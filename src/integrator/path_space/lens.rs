@@ -20,8 +20,8 @@
 use glam::{DVec2, Vec2};
 
 use super::kernel::RasterKernel;
+use super::path_state::{Interaction, PathState, PathVertex};
 use super::retrace::{first_non_specular, retrace, retrace_jacobian};
-use super::state::{Interaction, PathState, PathVertex};
 use super::strategy::Strategy;
 use super::PathContext;
 use crate::sampling::Rng;

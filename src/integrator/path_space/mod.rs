@@ -46,22 +46,23 @@ pub mod density;
 pub mod kernel;
 pub mod lens;
 pub mod multichain;
+pub mod path_state;
 #[cfg(test)]
 mod perturb_tests;
 pub mod portal;
 pub mod retrace;
 pub mod session;
 pub mod settings;
-pub mod state;
 pub mod strategy;
 #[cfg(test)]
 mod tests;
 pub mod trace;
+pub mod vertex;
 
 pub use chain::{Pmlt, PmltRun};
 pub use kernel::{DirectionKernel, RasterKernel};
+pub use path_state::{Interaction, PathState, PathVertex};
 pub use settings::PmltSettings;
-pub use state::{Interaction, PathState, PathVertex};
 pub use strategy::{Entry, Mutation, Strategy, StrategySet};
 
 use crate::scene::Scene;

@@ -18,8 +18,8 @@
 
 use super::kernel::{DirectionKernel, RasterKernel};
 use super::lens::{offset_raster, raster_to_solid_angle};
+use super::path_state::{Interaction, PathState, PathVertex};
 use super::retrace::{first_non_specular, retrace, retrace_jacobian};
-use super::state::{Interaction, PathState, PathVertex};
 use super::strategy::Strategy;
 use super::PathContext;
 use crate::sampling::Rng;

@@ -65,7 +65,7 @@ use glam::DVec3;
 
 use super::density::{trace, Side};
 use super::kernel::DirectionKernel;
-use super::state::{with_role, Interaction, PathState, PathVertex};
+use super::path_state::{with_role, Interaction, PathState, PathVertex};
 use super::strategy::Strategy;
 use super::PathContext;
 use crate::geometry::Ray;

@@ -30,7 +30,7 @@
 use glam::Vec3;
 
 use super::density::{light_step_measure_factor, trace, Side};
-use super::state::{with_role, Interaction, PathVertex};
+use super::path_state::{with_role, Interaction, PathVertex};
 use super::PathContext;
 use crate::geometry::spawn_ray;
 use crate::integrator::bdpt::Vertex;

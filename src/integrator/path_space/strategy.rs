@@ -18,7 +18,7 @@
 //!   a = min(1, f*(ȳ) P_i(ȳ) T_i(ȳ→x̄) / (f*(x̄) P_i(x̄) T_i(x̄→ȳ))),
 //! since the reverse move must choose the same strategy at ȳ, whose suitable set may differ.
 
-use super::state::PathState;
+use super::path_state::PathState;
 use super::PathContext;
 use crate::sampling::Rng;
 use crate::stats::Counters;

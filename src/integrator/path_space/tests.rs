@@ -8,7 +8,7 @@ use glam::Vec2;
 
 use super::bidirectional::{Bidirectional, Cut, LengthKernel};
 use super::chain::{new_stats, step};
-use super::state::{with_role, PathState};
+use super::path_state::{with_role, PathState};
 use super::strategy::{Entry, Strategy, StrategySet};
 use super::PathContext;
 use crate::camera::Camera;
@@ -185,12 +185,12 @@ fn furnace_shares(strategy: Bidirectional, chains: u64, iterations: u64, max_dep
             let mut film = SplatBuffer::new(16, 16);
             let mut stats = new_stats(max_depth, &set);
             for _ in 0..burn_in {
-                step(&ctx, &set, &mut current, &mut rng, &mut stats, &mut film, &mut counters);
+                step(&ctx, &set, &mut current, &mut rng, &mut stats, &mut film, 0, &mut counters);
                 film.clear();
             }
             let mut stats = new_stats(max_depth, &set);
             for _ in 0..iterations {
-                step(&ctx, &set, &mut current, &mut rng, &mut stats, &mut film, &mut counters);
+                step(&ctx, &set, &mut current, &mut rng, &mut stats, &mut film, 0, &mut counters);
                 film.clear();
             }
             stats.per_depth.iter().map(|d| d.iterations as f64 / iterations as f64).collect()

@@ -42,7 +42,7 @@ pub fn raster_trace(
     let every = every.max(1);
     let mut trace = Vec::with_capacity((mutations / every) as usize);
     for k in 1..=mutations {
-        step(&ctx, &set, &mut unit.current, &mut unit.rng, &mut slot.stats, &mut film, &mut counters);
+        step(&ctx, &set, &mut unit.current, &mut unit.rng, &mut slot.stats, &mut film, 0, &mut counters);
         if k % every == 0 {
             trace.push(unit.current.raster / size);
         }

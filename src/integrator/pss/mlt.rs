@@ -66,6 +66,7 @@ use crate::integrator::bdpt::{
     connect_all, evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch,
     FilmRegion, Vertex,
 };
+use crate::integrator::driver::{chain_scale, expected_value_splats};
 use crate::integrator::{RenderError, RenderOutput};
 use crate::sampling::Rng;
 use crate::scene::Scene;
@@ -139,12 +140,7 @@ impl ChainUnit {
             if !values_ok {
                 return Err(bad("a current state with values out of range".into()));
             }
-            let vertex_ok = |v: &Vertex| {
-                [v.p, v.p_error, v.ng, v.frame.s, v.frame.t, v.frame.n, v.wo, v.dir].iter().all(|x| x.is_finite())
-                    && v.uv.is_finite()
-                    && (v.material as usize) < scene.materials.len().max(1)
-                    && v.light.is_none_or(|l| (l as usize) < scene.lights.len())
-            };
+            let vertex_ok = |v: &Vertex| v.is_valid_in(scene);
             // MMLT keeps no path (only its technique); RJMLT's technique indexes its path.
             let s_ok = c.s <= max_vertices && (c.path.is_empty() || c.s <= c.path.len());
             if !s_ok || !c.path.iter().all(vertex_ok) {
@@ -195,7 +191,7 @@ struct SubChain {
 /// A Markov chain unit: its own random stream (depth choice, acceptance) and its sub-chains. All
 /// of it is saved in checkpoints and shards (`crate::state::UnitState`, through serde).
 #[derive(Serialize, Deserialize)]
-struct ChainUnit {
+pub struct ChainUnit {
     /// The chain's index in the whole render (a shard holds some of the chains).
     index: u64,
     rng: Rng,
@@ -405,7 +401,8 @@ impl Mlt {
             if iterations[d] == 0 {
                 continue;
             }
-            let scale = self.technique_count(d) as f64 * b_d * pixels as f64 / iterations[d] as f64;
+            // n_d · b_d is depth d's normalisation constant (its n_d techniques share the film).
+            let scale = chain_scale(self.technique_count(d) as f64 * b_d, pixels as u64, iterations[d]);
             let layer = &film.sums()[d * pixels..(d + 1) * pixels];
             for (t, s) in total.iter_mut().zip(layer) {
                 t[0] += s[0] * scale;
@@ -485,10 +482,10 @@ impl Mlt {
         };
         counters.samples += 1;
         let large_step_target = large.then_some(proposal.target);
-        self.splat(d, &proposal, a, film);
-        if a < 1.0 {
-            self.splat(d, &chain.current, 1.0 - a, film);
-        }
+        // Weights in f64 and back: a is an f32, so a and 1 − a come back as the f32 values.
+        expected_value_splats(a as f64, |is_proposal, w| {
+            self.splat(d, if is_proposal { &proposal } else { &chain.current }, w as f32, film)
+        });
         let accepted = rng.uniform() < a;
         let kind = if jump {
             MoveKind::Jump

@@ -30,7 +30,7 @@ impl Spectrum {
 }
 
 pub fn parse_rgb(s: &str, loc: &Loc) -> Result<[f64; 3], ImportError> {
-    let v = super::objects::parse_list(s, loc)?;
+    let v = super::numbers::parse_list(s, loc)?;
     match v.as_slice() {
         [g] => Ok([*g; 3]),
         [r, g, b] => Ok([*r, *g, *b]),
@@ -64,7 +64,7 @@ pub fn srgb_to_linear(v: f64) -> f64 {
 /// `400:0.5, 500:0.6, ...` or a single number.
 pub fn parse_spectrum(s: &str, loc: &Loc) -> Result<Spectrum, ImportError> {
     if !s.contains(':') {
-        let v = super::objects::parse_list(s, loc)?;
+        let v = super::numbers::parse_list(s, loc)?;
         return match v.as_slice() {
             [g] => Ok(Spectrum::Uniform(*g)),
             _ => Err(ImportError::at(loc, format!("expected one number or wavelength:value pairs, got '{s}'"))),
@@ -75,7 +75,7 @@ pub fn parse_spectrum(s: &str, loc: &Loc) -> Result<Spectrum, ImportError> {
         let Some((w, v)) = item.split_once(':') else {
             return Err(ImportError::at(loc, format!("expected wavelength:value, got '{item}'")));
         };
-        let (w, v) = (super::objects::parse_f64(w, loc)?, super::objects::parse_f64(v, loc)?);
+        let (w, v) = (super::numbers::parse_f64(w, loc)?, super::numbers::parse_f64(v, loc)?);
         // Wavelengths in nanometres: a spectrum beyond (0, 10^5] (far infrared) is not light a
         // colour can be made of, and ±1e30 once passed unnoticed.
         if !(w > 0.0 && w <= 1e5) {

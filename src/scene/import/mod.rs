@@ -12,6 +12,7 @@
 
 mod bsdf;
 mod colour;
+mod numbers;
 mod objects;
 mod scene;
 mod serialized;

@@ -11,6 +11,7 @@ use std::sync::Arc;
 use glam::{DMat4, DVec3};
 
 use super::colour::{self, Spectrum};
+use super::numbers::{parse_f64, parse_list};
 use super::xml::{Element, Loc};
 use super::ImportError;
 
@@ -345,17 +346,4 @@ impl Obj {
             None => format!("<{} type=\"{}\">", self.class, self.plugin),
         }
     }
-}
-
-pub fn parse_f64(s: &str, loc: &Loc) -> Result<f64, ImportError> {
-    let v: f64 = s.trim().parse().map_err(|_| ImportError::at(loc, format!("expected a number, got '{s}'")))?;
-    if !v.is_finite() {
-        return Err(ImportError::at(loc, format!("expected a finite number, got '{s}'")));
-    }
-    Ok(v)
-}
-
-/// Numbers separated by commas and/or white space.
-pub fn parse_list(s: &str, loc: &Loc) -> Result<Vec<f64>, ImportError> {
-    s.split(|c: char| c == ',' || c.is_whitespace()).filter(|t| !t.is_empty()).map(|t| parse_f64(t, loc)).collect()
 }

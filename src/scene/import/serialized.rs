@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-use crate::scene::mesh_io::RawMesh;
+use crate::scene::raw_mesh::RawMesh;
 
 const FORMAT: u16 = 0x041C;
 const HAS_NORMALS: u32 = 0x0001;

@@ -3,7 +3,7 @@
 
 use glam::{DMat3, DMat4, DVec3, DVec4};
 
-use super::objects::{parse_f64, parse_list};
+use super::numbers::{parse_f64, parse_list};
 use super::xml::{Element, Loc};
 use super::ImportError;
 

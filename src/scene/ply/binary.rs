@@ -9,7 +9,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::{Element, Format, Header, Kind, Scalar};
-use crate::scene::mesh_io::RawMesh;
+use crate::scene::raw_mesh::RawMesh;
 
 /// Bytes of the body read from the file at a time.
 pub(super) const CHUNK: usize = 1 << 20;

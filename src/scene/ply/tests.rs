@@ -2,7 +2,7 @@ use glam::{Vec2, Vec3};
 
 use super::binary::{read_binary_in_chunks, CHUNK};
 use super::*;
-use crate::scene::mesh_io::RawMesh;
+use crate::scene::raw_mesh::RawMesh;
 
 fn read(bytes: &[u8]) -> Result<RawMesh, String> {
     let mut r = bytes;

@@ -1,34 +1,38 @@
-//! The MLT render: bootstrap, chains, the driver's passes and the normalised output — from the
-//! start or from a saved state, for all chains or a shard's. What a state keeps
-//! of it is [`MltPart`]: the bootstrap every chain and the normalisation share, the chains
-//! themselves (sampler, current path, random stream, large-step totals) and the slots' statistics
-//! merged, whose per-depth iteration counts the normalisation divides by.
+//! PSSMLT, MMLT and RJMLT on the chain runner (`integrator::driver::run_chains`): what is theirs
+//! in a render — the bootstrap (per depth, with depth 0's replicates), the chains' start (every
+//! sub-chain from a bootstrap sample), their segment (a depth chosen per iteration, Kelemen
+//! mutations, RJMLT's jumps), the statistics and the per-depth normalisation. What a state keeps
+//! of it is a `ChainPart` of [`BootstrapPart`] (the bootstrap every chain and the normalisation
+//! share), [`MltStats`] with the technique count layers ([`MltTally`]: the slots' statistics
+//! merged, whose per-depth iteration counts the normalisation divides by) and the chains
+//! themselves (sampler, current path, random stream, large-step totals).
 
-use std::time::Duration;
+use std::sync::{Arc, OnceLock};
 
 use serde::{Deserialize, Serialize};
 
 use super::{BEstimate, Bootstrap, ChainUnit, Mlt, MltRun, SlotState, SubChain, CHAIN_SEED_SALT};
 use super::{PathState, SUBCHAIN_SEED_SALT};
-use crate::film::Accumulator;
+use crate::film::{Accumulator, Image};
+use crate::integrator::bdpt::BdptContext;
 use crate::integrator::driver::{
-    boundary_counters, load_units, merge_chain_parts, merge_slot_states, save_units, state_film, ChainPart,
-    ChainSession, CheckpointHook, Driver, PassBoundary, PassSet, RunStart, Slot, Tally,
+    chain_output_of_state, merge_chain_parts, run_chains, ChainBootstrap, ChainIntegrator, ChainRender, ChainStats,
+    Driver, Slot, Tally, WallClock,
 };
 use crate::integrator::pss::bootstrap::{run_bootstrap, run_shared_bootstrap, variance_of_mean};
 use crate::integrator::pss::sampler::PssSampler;
 use crate::integrator::pss::stats::{MltStats, MoveStats};
-use crate::integrator::{Budget, Integrator, Progress, RenderError, RenderJob, RenderOutput};
+use crate::integrator::{Integrator, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::{Distribution1D, Rng};
 use crate::scene::Scene;
-use crate::state::{decode, RenderState, Session, StateError};
+use crate::state::{RenderState, Session, StateError};
 use crate::stats::{AcceptanceCount, Counters};
 
 /// The bootstrap's outcome: per depth the sum of the targets of `paths` uniform samples, and the
 /// warnings it gave. Identical in every shard of a sample-budget render (its streams depend on the
 /// seed only), which the merge checks.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-struct BootstrapPart {
+pub struct BootstrapPart {
     sums: Vec<f64>,
     /// Per depth the sum of the squared targets (b_d's standard error in the statistics).
     sums_sq: Vec<f64>,
@@ -50,38 +54,60 @@ struct BootstrapPart {
     warnings: Vec<String>,
 }
 
-/// The MLT part of a render state (`crate::state`).
-#[derive(Serialize, Deserialize)]
-struct MltPart {
-    bootstrap: BootstrapPart,
-    /// Mutations per chain and pass.
-    segment: u64,
-    /// The slots' statistics merged (per-depth iterations: the normalisation's divisors).
+impl ChainBootstrap for BootstrapPart {
+    fn same_as(&self, other: &BootstrapPart) -> bool {
+        let key = |b: &BootstrapPart| (b.sums.clone(), b.direct_sums.clone(), b.paths);
+        key(self) == key(other)
+    }
+    fn seconds_mut(&mut self) -> &mut f64 {
+        &mut self.seconds
+    }
+}
+
+/// The MLT statistics of a render state: the slots' merged.
+#[derive(Clone, Serialize, Deserialize)]
+pub struct MltTally {
+    /// Per-depth iterations: the normalisation's divisors.
     stats: MltStats,
     /// The technique count layers, merged (only with `technique_count_layers`).
     count_films: Option<Vec<Vec<Accumulator>>>,
-    /// The chains, by their index in the whole render, each written through `UnitState`.
-    units: Vec<(u64, Vec<u8>)>,
 }
 
-impl ChainPart for MltPart {
-    fn units_mut(&mut self) -> &mut Vec<(u64, Vec<u8>)> {
-        &mut self.units
-    }
-
-    fn absorb(&mut self, other: &MltPart) -> Result<(), StateError> {
-        let key = |b: &BootstrapPart| (b.sums.clone(), b.direct_sums.clone(), b.paths);
-        let same_bootstrap = key(&self.bootstrap) == key(&other.bootstrap);
-        if !same_bootstrap || self.segment != other.segment {
-            return Err(StateError::Mismatch("the shards did not start from the same bootstrap".into()));
-        }
+impl ChainStats for MltTally {
+    fn absorb(&mut self, other: &MltTally) {
         self.stats.merge(&other.stats);
         if let (Some(a), Some(b)) = (self.count_films.as_mut(), other.count_films.as_ref()) {
             for (x, y) in a.iter_mut().flatten().zip(b.iter().flatten()) {
                 x.merge(y);
             }
         }
-        Ok(())
+    }
+}
+
+impl ChainIntegrator for Mlt {
+    type Unit = ChainUnit;
+    type Boot = BootstrapPart;
+    type Stats = MltTally;
+
+    fn unit_index(unit: &ChainUnit) -> u64 {
+        unit.index
+    }
+
+    fn chain_output(
+        &self,
+        film: &Accumulator,
+        units: &[ChainUnit],
+        stats: MltTally,
+        boot: &BootstrapPart,
+        tally: Tally,
+    ) -> Result<RenderOutput, RenderError> {
+        if !film.height.is_multiple_of(self.depth_count()) {
+            return Err(StateError::Mismatch("the state's film does not hold one layer per depth".into()).into());
+        }
+        let mut slot = self.new_slot(0, 0);
+        slot.stats = stats.stats;
+        slot.count_films = stats.count_films;
+        Ok(self.output(film, units, slot, boot, tally))
     }
 }
 
@@ -102,27 +128,17 @@ impl Integrator for Mlt {
         session: &Session,
         save: bool,
     ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
-        self.run_session_film(scene, job, progress, session, save).map(|(run, state)| (run.output, state))
+        let run =
+            run_chains(&MltRender::new(self, scene, job), job, progress, session, save, Arc::new(WallClock::new()))?;
+        Ok((run.output, run.state))
     }
 
     fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
-        let part: MltPart = decode(&state.part)?;
-        let units: Vec<ChainUnit> = load_units(&part.units)?;
-        let film = state_film(state);
-        let depths = self.depth_count();
-        if !film.height.is_multiple_of(depths) {
-            return Err(StateError::Mismatch("the state's film does not hold one layer per depth".into()).into());
-        }
-        let mut slot = self.new_slot(0, 0);
-        slot.stats = part.stats;
-        slot.count_films = part.count_films;
-        let wall = Duration::try_from_secs_f64(state.wall_time_s).unwrap_or_default();
-        let tally = Tally { passes: state.passes_done, segment: part.segment, counters: state.counters.clone(), wall };
-        Ok(self.output(&film, &units, slot, &part.bootstrap, tally))
+        chain_output_of_state(self, state)
     }
 
     fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
-        merge_chain_parts::<MltPart>(parts)
+        merge_chain_parts::<Mlt>(parts)
     }
 }
 
@@ -184,173 +200,27 @@ impl Mlt {
     /// The render with the driver's stacked per-depth film (`Integrator::render` keeps only the
     /// output).
     pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<MltRun, RenderError> {
-        self.run_session_film(scene, job, progress, &Session::default(), false).map(|(run, _)| run)
-    }
-
-    /// The render under `session`; with `save`, also the state it reached (which then takes the
-    /// film, and `MltRun::film` is empty).
-    fn run_session_film(
-        &self,
-        scene: &Scene,
-        job: &RenderJob,
-        progress: &dyn Progress,
-        session: &Session,
-        save: bool,
-    ) -> Result<(MltRun, Option<RenderState>), RenderError> {
-        let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
-        let pixels = (width * height) as u64;
-        let depths = self.depth_count();
-        // Mutations per pixel × pixels must not overflow (`Budget::SamplesPerPixel` below).
-        crate::integrator::check_budget(job.budget, scene.camera.width, scene.camera.height, "budget")?;
-        // The driver's film stacks the depths' images (module docs, "Films and threads"); the
-        // driver refuses it beyond 2^32 pixels, and a stack beyond 2^32 rows is reported as that.
-        let stacked_height = u32::try_from(height as u64 * depths as u64)
-            .map_err(|_| RenderError::FilmTooLarge { width: scene.camera.width, height: u32::MAX })?;
-        let driver = Driver::new(job, width as u32, stacked_height)?;
-        let rr = if self.settings.rr_depth == u32::MAX { usize::MAX } else { self.settings.rr_depth as usize };
-        let ctx = crate::integrator::bdpt::BdptContext::new(scene, rr, self.settings.mis);
-        let mut cs = ChainSession::new(session, self.settings.chains)?;
-        let segment = pixels.div_ceil(self.settings.chains).max(1);
-        let per_pass = segment * self.settings.chains;
-        let shard = session.shard;
-
-        // Where the chains start: a saved state, or the bootstrap.
-        let mut counters_before = Counters::default();
-        let (boot, units, saved_slot, film, next_pass) = match cs.resumed::<MltPart>(width as u32, stacked_height)? {
-            Some((state, part)) => {
-                let units: Vec<ChainUnit> = load_units(&part.units)?;
-                for unit in &units {
-                    let counts = (self.depth_count(), self.settings.max_depth as usize + 2);
-                    unit.check_restored(scene, counts, width as u32, height as u32)?;
-                }
-                let mut slot = self.new_slot(width, height);
-                slot.stats = part.stats;
-                slot.count_films = part.count_films;
-                let saved = (state.counters.clone(), slot);
-                (part.bootstrap, units, Some(saved), Some(state_film(state)), state.passes_done)
-            }
-            None => {
-                let (boot, boot_counters, dists) = self.bootstrap(&driver, &ctx, job, progress, shard.is_some())?;
-                counters_before = boot_counters;
-                let Some(dists) = dists else {
-                    // No light found: a black image, and a complete state.
-                    let film = Accumulator::new(width, height * depths);
-                    let tally = Tally { passes: 0, segment, counters: counters_before, wall: cs.elapsed() };
-                    let mut empty = self.new_slot(0, 0);
-                    empty.count_films = None;
-                    let stats = empty.stats.clone();
-                    let output = self.output(&film, &[], empty, &boot, tally);
-                    let part = MltPart { bootstrap: boot, segment, stats, count_films: None, units: Vec::new() };
-                    let (film, state) =
-                        cs.finish(film, &output.counters, save.then_some(part), 0, true, false, output.wall_time)?;
-                    return Ok((MltRun { output, film }, state));
-                };
-                let chains = (0..self.settings.chains).filter(|c| shard.is_none_or(|s| s.contains(*c)));
-                let mut init_slot = self.new_slot(0, 0);
-                let units: Vec<ChainUnit> = chains
-                    .map(|c| self.start_chain(c, &dists, &ctx, job.seed, &mut init_slot, &mut counters_before))
-                    .collect();
-                (boot, units, None, None, 0)
-            }
-        };
-
-        let passes = cs.passes(job.budget, pixels, per_pass, segment, units.len(), next_pass, progress);
-        progress.message("mutating");
-        let bootstrap = boot.estimates();
-        let preview = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
-            let large_steps = self.large_step_totals(at.units);
-            let iterations = self.iteration_counts(at.slots.iter().map(|slot| &slot.state));
-            self.normalised_image(at.film, &large_steps, &iterations, &bootstrap).0
-        };
-        let checkpoint = |at: &PassBoundary<'_, ChainUnit, SlotState>| {
-            cs.checkpoint(progress, || {
-                let counters = boundary_counters(&counters_before, at.slots);
-                let mut merged = self.new_slot(0, 0);
-                merged.count_films = None;
-                for (i, slot) in at.slots.iter().enumerate() {
-                    if i == 0 {
-                        merged.count_films = slot.state.count_films.clone();
-                        merged.stats = slot.state.stats.clone();
-                    } else {
-                        merge_slot(&mut merged, &slot.state);
-                    }
-                }
-                let boot = BootstrapPart { seconds: cs.saved_seconds(boot.seconds), ..boot.clone() };
-                let part = self.part(&boot, segment, &merged, at.units)?;
-                let done = at.passes_done;
-                cs.state(at.film.clone(), &counters, &part, done, cs.complete_at(done), cs.wall())
-            })
-        };
-        let start = RunStart { units, next_pass, film, saved_slot, passes: PassSet::ALL };
-        let out = driver.run_from(
-            start,
-            passes,
-            progress,
-            |_| self.new_slot(width, height),
-            |_, unit, slot| {
-                let Slot { index, state, film, counters } = slot;
-                // The unit's own large steps so far: the choice depends on the chain alone.
-                let depth_choice = (depths > 1).then(|| self.depth_choice(&bootstrap, &unit.large_steps));
-                for _ in 0..segment {
-                    let d = depth_choice.as_ref().map_or(0, |c| c.sample_discrete(unit.rng.uniform()).0);
-                    let Some(chain) = unit.subchains[d].as_mut() else { continue };
-                    if let Some(target) = self.iterate(&ctx, d, chain, &mut unit.rng, state, film, counters) {
-                        let depth = &mut state.stats.per_depth[d];
-                        depth.large_step_target_sum += target as f64;
-                        depth.large_steps += 1;
-                        unit.large_steps[d].0 += target as f64;
-                        unit.large_steps[d].1 += 1;
-                    }
-                }
-                if *index == 0 {
-                    let moves = &state.stats.moves;
-                    let (proposed, accepted) = [&moves.large, &moves.small]
-                        .into_iter()
-                        .chain(moves.jump.as_ref())
-                        .fold((0, 0), |(p, a), m| (p + m.proposals, a + m.accepted));
-                    progress.message(&format!("acceptance {:.1}%", 100.0 * accepted as f64 / proposed.max(1) as f64));
-                }
-                segment
-            },
-            Some(&preview),
-            session.control,
-            session.checkpoint.is_some().then_some(&checkpoint as &CheckpointHook<'_, _, _>),
-        );
-
-        let merged = merge_slot_states(out.slot_states, merge_slot)?;
-        let mut counters = out.counters;
-        counters.merge(&counters_before);
-        let boot_for_state = BootstrapPart { seconds: cs.saved_seconds(boot.seconds), ..boot.clone() };
-        let part = save.then(|| self.part(&boot_for_state, segment, &merged, &out.units)).transpose()?;
-        let tally = Tally { passes: out.passes, segment, counters, wall: cs.wall() };
-        let output = self.output(&out.film, &out.units, merged, &boot, tally);
-        let complete = cs.complete_at(out.passes);
-        let (film, state) =
-            cs.finish(out.film, &output.counters, part, out.passes, complete, out.stopped, output.wall_time)?;
-        Ok((MltRun { output, film }, state))
+        let render = MltRender::new(self, scene, job);
+        let run = run_chains(&render, job, progress, &Session::default(), false, Arc::new(WallClock::new()))?;
+        Ok(MltRun { output: run.output, film: run.film })
     }
 
     /// The bootstrap (see the module docs): up to `bootstrap` uniform samples per depth, in
     /// batches over the pool (deterministic: each sample has its own stream). Returns its outcome,
     /// its counters and, unless no sample found light, per depth the distribution of its targets
-    /// the chains start from. `same_everywhere` (a shard): a time budget may not shorten it.
+    /// the chains start from. `bootstrap::run_bootstrap`: under a time budget of `time_budget`
+    /// seconds it takes at most a quarter of the budget (large steps keep refining b during the
+    /// render, so a shorter bootstrap costs accuracy of the start only, not correctness); the
+    /// runner gives a shard none, since its bootstrap must be the same in every shard.
     fn bootstrap(
         &self,
         driver: &Driver,
-        ctx: &crate::integrator::bdpt::BdptContext,
-        job: &RenderJob,
+        ctx: &BdptContext,
+        seed: u64,
         progress: &dyn Progress,
-        same_everywhere: bool,
+        time_budget: Option<f64>,
     ) -> Result<(BootstrapPart, Counters, Option<StartDistributions>), RenderError> {
         let depths = self.depth_count();
-        // `bootstrap::run_bootstrap`: under a time budget it takes at most a quarter of the budget
-        // (large steps keep refining b during the render, so a shorter bootstrap costs accuracy of
-        // the start only, not correctness) — except in a shard, whose bootstrap must be the same
-        // in every shard.
-        let time_budget = match job.budget {
-            Budget::Seconds(s) if !same_everywhere => Some(s),
-            _ => None,
-        };
         // MMLT and RJMLT push B_d and then Q_d per depth (`bootstrap_sample`).
         let slots = if depths > 1 { 2 * depths } else { 1 };
         let boot = run_shared_bootstrap(
@@ -360,7 +230,7 @@ impl Mlt {
             self.settings.bootstrap,
             time_budget,
             |_| self.new_slot(0, 0),
-            |i, slot, counters, out| self.bootstrap_sample(ctx, job.seed, i, slot, counters, out),
+            |i, slot, counters, out| self.bootstrap_sample(ctx, seed, i, slot, counters, out),
         );
         let n_boot = boot.paths;
         let mut counters = boot.counters;
@@ -394,7 +264,7 @@ impl Mlt {
                 n_boot,
                 None,
                 |_| self.new_slot(0, 0),
-                |r, i, slot, counters| self.direct_sample(ctx, job.seed, r, i, slot, counters),
+                |r, i, slot, counters| self.direct_sample(ctx, seed, r, i, slot, counters),
             );
             counters.merge(&replicates.counters);
             elapsed += replicates.elapsed;
@@ -448,7 +318,7 @@ impl Mlt {
         &self,
         c: u64,
         dists: &StartDistributions,
-        ctx: &crate::integrator::bdpt::BdptContext,
+        ctx: &BdptContext,
         seed: u64,
         init_slot: &mut SlotState,
         counters: &mut Counters,
@@ -472,24 +342,6 @@ impl Mlt {
             })
             .collect();
         ChainUnit { index: c, rng, large_steps: vec![(0.0, 0); depths], subchains }
-    }
-
-    /// The state's MLT part: the bootstrap, the merged slot, the chains written through
-    /// `UnitState`.
-    fn part(
-        &self,
-        boot: &BootstrapPart,
-        segment: u64,
-        slot: &SlotState,
-        units: &[ChainUnit],
-    ) -> Result<MltPart, StateError> {
-        let (mut stats, count_films) = (slot.stats.clone(), slot.count_films.clone());
-        // The slot-order f64 sums depend on the threads; a state's bytes must not (shards).
-        for (depth, (sum, _)) in stats.per_depth.iter_mut().zip(self.large_step_totals(units)) {
-            depth.large_step_target_sum = sum;
-        }
-        let units = save_units(units, |u| u.index)?;
-        Ok(MltPart { bootstrap: boot.clone(), segment, stats, count_films, units })
     }
 
     /// The image and statistics of a film with its chains and merged slot: each depth normalised
@@ -564,14 +416,171 @@ impl Mlt {
     }
 }
 
-/// Adds a slot's statistics and count layers to `merged` (slot order).
-fn merge_slot(merged: &mut SlotState, other: &SlotState) {
-    if let (Some(m), Some(o)) = (merged.count_films.as_mut(), other.count_films.as_ref()) {
-        for (a, b) in m.iter_mut().flatten().zip(o.iter().flatten()) {
-            a.merge(b);
-        }
+/// One PSSMLT, MMLT or RJMLT render of a scene (`ChainRender`).
+struct MltRender<'a> {
+    mlt: &'a Mlt,
+    scene: &'a Scene,
+    ctx: BdptContext<'a>,
+    seed: u64,
+    /// The bootstrap's per-depth estimates, once known (`ChainRender::begin`): the depth choice
+    /// and the normalisation read them.
+    bootstrap: OnceLock<Bootstrap>,
+}
+
+impl<'a> MltRender<'a> {
+    fn new(mlt: &'a Mlt, scene: &'a Scene, job: &RenderJob) -> MltRender<'a> {
+        let rr = if mlt.settings.rr_depth == u32::MAX { usize::MAX } else { mlt.settings.rr_depth as usize };
+        let ctx = BdptContext::new(scene, rr, mlt.settings.mis);
+        MltRender { mlt, scene, ctx, seed: job.seed, bootstrap: OnceLock::new() }
     }
-    merged.stats.merge(&other.stats);
+
+    fn size(&self) -> (usize, usize) {
+        (self.scene.camera.width as usize, self.scene.camera.height as usize)
+    }
+
+    fn estimates(&self) -> &Bootstrap {
+        self.bootstrap.get_or_init(|| Bootstrap { estimates: Vec::new(), found: Vec::new() })
+    }
+}
+
+impl ChainRender for MltRender<'_> {
+    type Integrator = Mlt;
+    type Slot = SlotState;
+    type Start = StartDistributions;
+
+    fn integrator(&self) -> &Mlt {
+        self.mlt
+    }
+
+    fn image_size(&self) -> (u32, u32) {
+        (self.scene.camera.width, self.scene.camera.height)
+    }
+
+    /// The depths' images stacked (module docs, "Films and threads"); the driver refuses a film
+    /// beyond 2^32 pixels, and a stack beyond 2^32 rows is reported as that.
+    fn film_size(&self) -> Result<(u32, u32), RenderError> {
+        let (width, height) = self.image_size();
+        let stacked = u32::try_from(height as u64 * self.mlt.depth_count() as u64)
+            .map_err(|_| RenderError::FilmTooLarge { width, height: u32::MAX })?;
+        Ok((width, stacked))
+    }
+
+    fn chains(&self) -> u64 {
+        self.mlt.settings.chains
+    }
+
+    /// One pass is about one mutation per pixel over all chains.
+    fn segment(&self) -> u64 {
+        let (w, h) = self.size();
+        ((w * h) as u64).div_ceil(self.chains()).max(1)
+    }
+
+    fn new_slot(&self) -> SlotState {
+        let (w, h) = self.size();
+        self.mlt.new_slot(w, h)
+    }
+
+    fn bootstrap(
+        &self,
+        driver: &Driver,
+        progress: &dyn Progress,
+        time_budget: Option<f64>,
+    ) -> Result<(BootstrapPart, Counters, Option<StartDistributions>), RenderError> {
+        self.mlt.bootstrap(driver, &self.ctx, self.seed, progress, time_budget)
+    }
+
+    fn begin(&self, boot: &BootstrapPart) {
+        let _ = self.bootstrap.set(boot.estimates());
+    }
+
+    fn start_chains(
+        &self,
+        _driver: &Driver,
+        dists: &StartDistributions,
+        chains: &[u64],
+        _progress: &dyn Progress,
+        counters: &mut Counters,
+    ) -> Result<Vec<ChainUnit>, RenderError> {
+        let mut init_slot = self.mlt.new_slot(0, 0);
+        Ok(chains
+            .iter()
+            .map(|&c| self.mlt.start_chain(c, dists, &self.ctx, self.seed, &mut init_slot, counters))
+            .collect())
+    }
+
+    fn check_restored(&self, unit: &ChainUnit) -> Result<(), StateError> {
+        let (w, h) = self.image_size();
+        unit.check_restored(self.scene, (self.mlt.depth_count(), self.mlt.settings.max_depth as usize + 2), w, h)
+    }
+
+    fn empty_stats(&self) -> MltTally {
+        MltTally { stats: self.mlt.new_slot(0, 0).stats, count_films: None }
+    }
+
+    fn stats(&self, slots: &[&SlotState], units: &[ChainUnit]) -> MltTally {
+        let mut stats = slots.first().map(|s| s.stats.clone()).unwrap_or_default();
+        let mut count_films = slots.first().and_then(|s| s.count_films.clone());
+        for slot in slots.iter().skip(1) {
+            stats.merge(&slot.stats);
+            if let (Some(m), Some(o)) = (count_films.as_mut(), slot.count_films.as_ref()) {
+                for (a, b) in m.iter_mut().flatten().zip(o.iter().flatten()) {
+                    a.merge(b);
+                }
+            }
+        }
+        // The slot-order f64 sums depend on the threads; a state's bytes must not (shards).
+        for (depth, (sum, _)) in stats.per_depth.iter_mut().zip(self.mlt.large_step_totals(units)) {
+            depth.large_step_target_sum = sum;
+        }
+        MltTally { stats, count_films }
+    }
+
+    fn restore_slot(&self, stats: &MltTally) -> SlotState {
+        let mut slot = self.new_slot();
+        slot.stats = stats.stats.clone();
+        slot.count_films = stats.count_films.clone();
+        slot
+    }
+
+    fn run_segment(
+        &self,
+        _pass: u64,
+        unit: &mut ChainUnit,
+        slot: &mut Slot<SlotState>,
+        progress: &dyn Progress,
+    ) -> u64 {
+        let Slot { index, state, film, counters } = slot;
+        let segment = self.segment();
+        let depths = self.mlt.depth_count();
+        // The unit's own large steps so far: the choice depends on the chain alone.
+        let depth_choice = (depths > 1).then(|| self.mlt.depth_choice(self.estimates(), &unit.large_steps));
+        for _ in 0..segment {
+            let d = depth_choice.as_ref().map_or(0, |c| c.sample_discrete(unit.rng.uniform()).0);
+            let Some(chain) = unit.subchains[d].as_mut() else { continue };
+            if let Some(target) = self.mlt.iterate(&self.ctx, d, chain, &mut unit.rng, state, film, counters) {
+                let depth = &mut state.stats.per_depth[d];
+                depth.large_step_target_sum += target as f64;
+                depth.large_steps += 1;
+                unit.large_steps[d].0 += target as f64;
+                unit.large_steps[d].1 += 1;
+            }
+        }
+        if *index == 0 {
+            let moves = &state.stats.moves;
+            let (proposed, accepted) = [&moves.large, &moves.small]
+                .into_iter()
+                .chain(moves.jump.as_ref())
+                .fold((0, 0), |(p, a), m| (p + m.proposals, a + m.accepted));
+            progress.message(&format!("acceptance {:.1}%", 100.0 * accepted as f64 / proposed.max(1) as f64));
+        }
+        segment
+    }
+
+    fn preview(&self, film: &Accumulator, units: &[ChainUnit], slots: &[&SlotState]) -> Image {
+        let large_steps = self.mlt.large_step_totals(units);
+        let iterations = self.mlt.iteration_counts(slots.iter().copied());
+        self.mlt.normalised_image(film, &large_steps, &iterations, self.estimates()).0
+    }
 }
 
 #[cfg(test)]

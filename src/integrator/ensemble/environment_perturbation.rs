@@ -22,26 +22,17 @@ use std::rc::Rc;
 use std::sync::atomic::Ordering;
 
 use glam::DVec3;
-use serde::{Deserialize, Serialize};
 
 use super::anisotropic_path::GuideContext;
 use super::directional::{guided_vmf, Vmf};
 use super::guide::choose_weighted;
 use super::kernel::{angle_between, GreatArcKernel, StretchKernel};
+use super::settings::EnvironmentKernel;
 use super::tree::same_signature;
 use crate::integrator::path_space::retrace::retrace;
 use crate::integrator::path_space::{Interaction, PathContext, PathState, PathVertex, Strategy};
 use crate::sampling::Rng;
 use crate::stats::Counters;
-
-/// Which guided kernel the environment perturbation uses (module docs).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum EnvironmentKernel {
-    #[default]
-    Directional,
-    Hemispherical,
-}
 
 /// The index of x_{n−2}, if the perturbation is suitable for `path`: the last vertex at infinity,
 /// x_{n−2} a diffuse or glossy surface point (not the camera).
@@ -70,11 +61,11 @@ pub struct EnvironmentMove {
 
 /// The environment perturbation (module docs).
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Environment {
+pub struct EnvironmentPerturbation {
     pub kernel: EnvironmentKernel,
 }
 
-impl Environment {
+impl EnvironmentPerturbation {
     /// The weights of Υ's members for `path` and their environment directions.
     fn weighted_directions(guide: &GuideContext, path: &PathState, subset: &[u32]) -> (Rc<Vec<f64>>, Vec<DVec3>) {
         let j = path.len() - 2;
@@ -99,7 +90,7 @@ impl Environment {
     }
 }
 
-impl Strategy for Environment {
+impl Strategy for EnvironmentPerturbation {
     type Kernel = GuideContext;
     type Move = EnvironmentMove;
 

@@ -1,4 +1,4 @@
-//! Transparent huge pages for large arrays that are read at random places: textures' texels,
+//! Transparent huge pages: on for large arrays that are read at random places, textures' texels,
 //! meshes' positions and indices, and the BVH's nodes, leaf packets and ids. With 4 KiB pages such
 //! reads miss the TLB as well as the cache (a 2 MiB page covers 512 times as much); Linux backs
 //! memory with 2 MiB pages where it is asked to (`madvise(MADV_HUGEPAGE)`, which a
@@ -8,6 +8,7 @@
 
 use std::mem::MaybeUninit;
 use std::ops::{Deref, DerefMut};
+use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 
 use rayon::prelude::*;
 
@@ -16,8 +17,8 @@ pub(crate) const HUGE_PAGE: usize = 2 << 20;
 
 /// Arrays of at most this many bytes are placed on huge pages ([`HugeArray`]). Above it they stay
 /// on 4 KiB pages: the first touch of a huge page zeroes 2 MiB at once, which in this VM costs
-/// about four times as much per byte as 4 KiB faults (the `HugePages` comment in
-/// `accel/embree.rs`: 28–33% of the 10M-triangle load was `clear_page_erms`), and the arrays of
+/// about four times as much per byte as 4 KiB faults ([`BuildSwitch`]'s comment: 28–33% of the
+/// 10M-triangle load was `clear_page_erms`), and the arrays of
 /// such scenes are read too sparsely for the TLB to be what limits them.
 pub(crate) const HUGE_PAGE_ARRAY_BYTES: usize = 64 << 20;
 
@@ -222,6 +223,60 @@ impl<T: Copy> Drop for HugeArray<T> {
 
 /// Whether the kernel records huge-page advice (`hg` in `/proc/self/smaps`'s `VmFlags`) for the
 /// mapping that holds `p`, for the tests.
+/// Whether the kernel may back the process's new memory with transparent huge pages while Embree
+/// builds. Embree asks for them (`madvise(MADV_HUGEPAGE)`) for every array it allocates; the first
+/// touch of a huge page zeroes 2 MB at once, which in a virtual machine whose free memory the host
+/// has reclaimed costs about 3 s per GB against 0.7 s in 4 kB pages (measured on the 2-core KVM
+/// guest: docs/lab/performance.md). The build's largest temporary, its primitive array (32 bytes a
+/// triangle, filled once before the tree is built), gains nothing from huge pages: while a commit
+/// is armed, an allocation of at least `threshold` bytes turns them off for the process
+/// (`PR_SET_THP_DISABLE`, which the kernel checks at each page fault), and the next smaller one
+/// (the tree's nodes and leaves, which rays traverse and which keep their huge pages) turns them
+/// back on. The commit turns them back on in any case when it returns. Only the speed of page
+/// faults depends on this; what Embree builds is the same. `accel::embree` reports its
+/// allocations here from Embree's memory monitor.
+#[derive(Default)]
+pub(crate) struct BuildSwitch {
+    threshold: AtomicI64,
+    disabled: AtomicBool,
+}
+
+impl BuildSwitch {
+    pub(crate) fn arm(&self, threshold: i64) {
+        self.threshold.store(threshold, Ordering::Relaxed);
+    }
+
+    pub(crate) fn allocation(&self, bytes: isize) {
+        let threshold = self.threshold.load(Ordering::Relaxed);
+        if threshold <= 0 || bytes <= 0 {
+            return;
+        }
+        let disable = bytes as i64 >= threshold;
+        if self.disabled.swap(disable, Ordering::Relaxed) != disable {
+            set_huge_pages(!disable);
+        }
+    }
+
+    pub(crate) fn disarm(&self) {
+        self.threshold.store(0, Ordering::Relaxed);
+        if self.disabled.swap(false, Ordering::Relaxed) {
+            set_huge_pages(true);
+        }
+    }
+}
+
+/// Lets (or stops) the kernel back this process's new memory with transparent huge pages where
+/// they were asked for. A failure (an old kernel) changes only the speed of page faults.
+fn set_huge_pages(allowed: bool) {
+    #[cfg(target_os = "linux")]
+    // SAFETY: PR_SET_THP_DISABLE takes one integer argument and touches no memory of ours.
+    unsafe {
+        libc::prctl(libc::PR_SET_THP_DISABLE, libc::c_ulong::from(!allowed), 0, 0, 0);
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = allowed;
+}
+
 #[cfg(all(test, target_os = "linux"))]
 pub(crate) fn advised_for_huge_pages<T>(p: *const T) -> bool {
     vm_flags_at(p as usize).is_some_and(|f| f.split_whitespace().any(|w| w == "hg"))
@@ -275,5 +330,33 @@ mod tests {
             assert!(a.iter().all(|&x| x == 7));
         }
         assert_eq!(large.len(), HUGE_PAGE_ARRAY_BYTES + 1);
+    }
+
+    /// The huge-page switch of a large build (`BuildSwitch`): off for an allocation of at least the
+    /// threshold (the primitive array), on again for the next smaller one (the tree's blocks) and
+    /// when the commit disarms it; untouched when not armed. Read back with PR_GET_THP_DISABLE.
+    #[test]
+    #[cfg(target_os = "linux")]
+    fn huge_pages_are_off_only_for_the_build_primitive_array() {
+        // SAFETY: PR_GET_THP_DISABLE takes no argument and touches no memory of ours.
+        let disabled = || unsafe { libc::prctl(libc::PR_GET_THP_DISABLE, 0, 0, 0, 0) } == 1;
+        let h = BuildSwitch::default();
+        h.allocation(1 << 30);
+        assert!(!disabled(), "not armed: no change");
+        h.arm(1000);
+        h.allocation(999);
+        assert!(!disabled(), "below the threshold");
+        h.allocation(1000);
+        assert!(disabled(), "the primitive array");
+        h.allocation(-1000);
+        assert!(disabled(), "a release changes nothing");
+        h.allocation(64);
+        assert!(!disabled(), "the tree's blocks");
+        h.allocation(5000);
+        assert!(disabled());
+        h.disarm();
+        assert!(!disabled(), "the commit's end");
+        h.allocation(5000);
+        assert!(!disabled(), "disarmed");
     }
 }
