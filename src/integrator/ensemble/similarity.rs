@@ -125,14 +125,7 @@ pub fn places_similarity(x: &[Place], v: &[Place], inv_l2: Option<f64>) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use glam::{Vec2, Vec3};
-
     use super::*;
-    use crate::integrator::bdpt::Vertex;
-    use crate::integrator::ensemble::guide::{GuideCounts, GuideView};
-    use crate::integrator::ensemble::settings::EmltSettings;
-    use crate::integrator::path_space::{Interaction, PathState};
-    use crate::spectrum::Rgb;
 
     /// Eq. 8's values at its landmarks (squared distances in units of L²): 1 at coincidence
     /// (d = 1/ε), tanh(1/2) at unit distance, the 1/(2r²) tail far away; and the printed sigmoid
@@ -151,95 +144,6 @@ mod tests {
             let d = 1.0 / (r * r).max(EPSILON);
             let printed = 2.0 / (1.0 + (-d).exp()) - 1.0;
             assert!((point_similarity(o, DVec3::Y * r) - printed).abs() < 1e-12);
-        }
-    }
-
-    /// A deterministic stream of numbers in [0, 1) for the test's paths.
-    struct Stream(u64);
-
-    impl Stream {
-        fn next(&mut self) -> f32 {
-            self.0 = self.0.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-            ((self.0 >> 40) as f32) / (1u64 << 24) as f32
-        }
-    }
-
-    fn vertex(p: Vec3, interaction: Interaction) -> PathVertex {
-        PathVertex { vertex: Vertex::camera(p, Rgb::ONE), interaction }
-    }
-
-    /// Camera → back wall → floor → the environment, in a room of about half a metre (the Cornell
-    /// box in metres), every position times `scale`.
-    fn room_path(s: &mut Stream, scale: f32) -> PathState {
-        let camera = Vec3::new(0.278, 0.273, -0.8);
-        let wall = Vec3::new(0.556 * s.next(), 0.549 * s.next(), 0.559);
-        let floor = Vec3::new(0.556 * s.next(), 0.0, 0.559 * s.next());
-        let mut sky = vertex(Vec3::ZERO, Interaction::Emitter);
-        sky.vertex.infinite = true;
-        sky.vertex.dir = Vec3::new(s.next() - 0.5, 1.0, s.next() - 0.5).normalize();
-        let mut vertices: Vec<PathVertex> = [camera, wall, floor]
-            .into_iter()
-            .zip([Interaction::Camera, Interaction::Diffuse, Interaction::Diffuse])
-            .map(|(p, i)| vertex(p * scale, i))
-            .collect();
-        vertices.push(sky);
-        PathState { vertices, raster: Vec2::new(64.0 * s.next(), 64.0 * s.next()), f_star: 1.0, ..PathState::default() }
-    }
-
-    /// The weights S(x̄, v̄, j, k) of Υ (a whole bucket of 32 guides: the first a copy of x̄ moved by
-    /// 2 mm, the others anywhere in the room) for the vertex ranges the guided perturbations use,
-    /// in the room scaled by `scale`.
-    fn room_weights(scale: f32) -> Vec<Vec<f64>> {
-        let mut s = Stream(7);
-        let x = room_path(&mut s, scale);
-        let mut near = x.clone();
-        for v in near.vertices.iter_mut().skip(1).filter(|v| !v.vertex.infinite) {
-            v.vertex.p += Vec3::splat(0.002 * scale);
-        }
-        let guides: Vec<PathState> = std::iter::once(near).chain((1..32).map(|_| room_path(&mut s, scale))).collect();
-        let view = GuideView::new(guides, &EmltSettings::default(), 64, 64);
-        let subset = view.subset(&x, 0);
-        assert_eq!(subset.len(), 32);
-        let counts = GuideCounts::default();
-        // By guide (Υ is in the bucket's order, `tree` module docs).
-        let by_guide = |w: &[f64]| {
-            let mut out = vec![0.0; w.len()];
-            for (&i, &wi) in subset.iter().zip(w) {
-                out[i as usize] = wi;
-            }
-            out
-        };
-        RANGES.iter().map(|&(j, k)| by_guide(&view.weights(&x, &subset, j, k, &counts))).collect()
-    }
-
-    /// Vertex ranges of Eq. 9 the guided perturbations weigh with: the linear lens (0 ..= 1), the
-    /// anisotropic kernels and the caustic (pairs), the environment (2 ..= 3), a whole path.
-    const RANGES: [(usize, usize); 5] = [(0, 1), (1, 2), (2, 3), (0, 2), (0, 3)];
-
-    /// Eq. 8 with L (module docs) does not depend on the unit of length: the same room, path and
-    /// guides in metres, millimetres and 1/1024 of a metre give the same weights (to the f32
-    /// rounding of the vertices). And S still discriminates: in every range the guide next to x̄ has
-    /// the largest selection weight, more than 1.03 times the smallest and 1.5 times over the whole
-    /// path (measured 1.056 for the linear lens's vertices 0 ..= 1, 1.68 for 0 ..= 3: at the
-    /// paper's scale guides across a room of about L are still fairly similar, S = tanh(1/2) at
-    /// distance L), which a constant S fails.
-    #[test]
-    fn similarity_is_unchanged_by_the_unit_of_length_and_discriminates() {
-        let metres = room_weights(1.0);
-        for scale in [1000.0, 1.0 / 1024.0] {
-            for (a, b) in metres.iter().zip(&room_weights(scale)) {
-                for (&wa, &wb) in a.iter().zip(b) {
-                    assert!((wa - wb).abs() <= 1e-5 * wa.abs().max(1e-12), "scale {scale}: {wa} vs {wb}");
-                }
-            }
-        }
-        for (&(j, k), w) in RANGES.iter().zip(&metres) {
-            let total: f64 = w.iter().sum();
-            let p: Vec<f64> = w.iter().map(|x| x / total).collect();
-            let lo = p.iter().copied().fold(f64::INFINITY, f64::min);
-            let best = super::super::guide::best_match(&p);
-            let least = if (j, k) == (0, 3) { 1.5 } else { 1.03 };
-            assert!(best == Some(0) && p[0] > least * lo, "vertices {j}..={k}: selection weights {p:?}");
         }
     }
 

@@ -185,45 +185,4 @@ mod tests {
         assert_eq!(tree.subset(&path(&a, 1.0), 7, 8), vec![0, 3, 6, 9]);
         assert!(same_signature(&path(&a, 1.0), &paths[3]) && !same_signature(&paths[0], &paths[1]));
     }
-
-    /// Υ as Sec. 3.4's α needs it: a bucket of 2,048 paths spread uniformly over a 128×128 film,
-    /// ordered along the Morton curve, gives slices of M = 32 that are compact patches, so b_res
-    /// is mostly below c and α near α_l; in the order of Y's indices every slice spans the film
-    /// (b_res ≈ 0.9) and α is α_s. Υ stays the same for any path of the signature.
-    #[test]
-    fn morton_order_makes_subsets_compact_and_moves_alpha() {
-        use super::super::guide::GuideView;
-        use super::super::settings::EmltSettings;
-        use Interaction::*;
-        let sig = [Camera, Diffuse, Emitter];
-        let mut state = 11u64;
-        let mut next = || {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-            ((state >> 40) as f32) / (1u64 << 24) as f32
-        };
-        let paths: Vec<PathState> = (0..2048)
-            .map(|_| PathState { raster: glam::Vec2::new(128.0 * next(), 128.0 * next()), ..path(&sig, 1.0) })
-            .collect();
-        let codes: Vec<u64> = paths.iter().map(|p| morton(p.raster)).collect();
-        let view = GuideView::new(paths, &EmltSettings::default(), 128, 128);
-        let bucket = view.tree.bucket(&path(&sig, 1.0));
-        assert_eq!(bucket.len(), 2048);
-        assert!(bucket.windows(2).all(|w| codes[w[0] as usize] <= codes[w[1] as usize]), "not in Morton order");
-        let (mut b_res, mut alpha) = (Vec::new(), Vec::new());
-        for offset in (0..2048u64).step_by(7) {
-            let subset = view.subset(&path(&sig, 1.0), offset);
-            let elsewhere = PathState { raster: glam::Vec2::new(3.0, 120.0), ..path(&sig, 1.0) };
-            assert_eq!(subset, view.subset(&elsewhere, offset), "Υ must not depend on the path's raster");
-            b_res.push(view.b_res(&subset));
-            alpha.push(view.alpha(&subset));
-        }
-        let median = |v: &mut Vec<f64>| {
-            v.sort_by(f64::total_cmp);
-            v[v.len() / 2]
-        };
-        let spread = b_res.iter().filter(|&&b| b > 0.1).count() as f64 / b_res.len() as f64;
-        let (b_mid, a_mid) = (median(&mut b_res), median(&mut alpha));
-        assert!(b_mid < 0.03 && spread < 0.1, "median b_res {b_mid}, share above c {spread}");
-        assert!(a_mid > 0.45, "median α {a_mid}");
-    }
 }
