@@ -15,7 +15,7 @@ use plexus::state::Shard;
 use super::bad_input;
 use super::options::RenderOptions;
 use super::outputs::check_outputs;
-use super::session::SessionRun;
+use super::render_run::SessionRun;
 use super::state_io::{self, is_state_path};
 
 /// Samples per pixel when neither the command line nor the scene gives a budget.
@@ -129,7 +129,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         }
         state_paths.push(path.clone());
     }
-    let checkpoint_every = super::session::checkpoint_interval(args.checkpoint_every)?;
+    let checkpoint_every = super::render_run::checkpoint_interval(args.checkpoint_every)?;
     let camera = &loaded.scene.camera;
     check_outputs(&images, camera.width as usize, camera.height as usize)?;
     super::outputs::check_state_paths(&state_paths)?;
@@ -158,7 +158,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         Some(p) => p.display().to_string(),
         None => state_io::BUILTIN_SCENE.to_string(),
     };
-    super::session::run(SessionRun {
+    super::render_run::run(SessionRun {
         integrator: integrator.as_ref(),
         keeps_state: can.checkpoint,
         scene,

@@ -15,7 +15,7 @@ use plexus::scene::builtin_cornell_box;
 use plexus::state::{StateError, StateFile};
 
 use super::bad_input;
-use super::session::SessionRun;
+use super::render_run::SessionRun;
 use super::state_io::{self, is_state_path};
 
 #[derive(Debug, Args)]
@@ -98,7 +98,7 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
         (None, None) => "the state's budget",
     };
     row.check_limits(&loaded.scene, &params, budget, option).map_err(bad_input)?;
-    let checkpoint_every = super::session::checkpoint_interval(args.checkpoint_every)?;
+    let checkpoint_every = super::render_run::checkpoint_interval(args.checkpoint_every)?;
     let images: Vec<PathBuf> =
         if args.out.is_empty() { outputs_below_state(&args.state, &h.outputs)? } else { args.out.clone() };
     if images.iter().any(|p| is_state_path(p)) {
@@ -111,7 +111,7 @@ pub fn run(args: ResumeArgs) -> anyhow::Result<()> {
 
     let job = RenderJob { budget, seed: h.seed, threads: h.threads.max(1) };
     let header = plexus::state::StateHeader { budget, outputs: images.clone(), ..h.clone() };
-    super::session::run(SessionRun {
+    super::render_run::run(SessionRun {
         integrator: integrator.as_ref(),
         keeps_state: true,
         scene: &loaded.scene,

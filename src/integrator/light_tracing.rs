@@ -14,12 +14,12 @@ use serde::{Deserialize, Serialize};
 
 use super::bdpt::connect::connect_to_camera;
 use super::bdpt::{generate_light_subpath, BdptContext, MisHeuristic, Vertex};
-use super::driver::{ImagePart, ImageRender, ImageRun};
-use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
+use super::driver::{ImageEngine, ImageIntegrator, ImageRender, ImageRun};
+use super::{settings_from_table, Plugin, Progress, RenderError, RenderJob};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
-use crate::state::{RenderState, Session};
+use crate::state::Session;
 
 /// Settings of `integrator = "light"`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -65,32 +65,16 @@ impl LightTracer {
     }
 }
 
-impl Integrator for LightTracer {
-    fn name(&self) -> &'static str {
+impl Plugin for LightTracer {
+    type Engine = ImageEngine;
+    type Settings = LightTracerSettings;
+
+    fn plugin_name(&self) -> &'static str {
         "light"
     }
 
-    fn settings_json(&self) -> serde_json::Value {
-        serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
-    }
-
-    fn run_session(
-        &self,
-        scene: &Scene,
-        job: &RenderJob,
-        progress: &dyn Progress,
-        session: &Session,
-        save: bool,
-    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
-        self.render_run_session(scene, job, progress, *session, save).map(ImageRun::into_session)
-    }
-
-    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
-        ImagePart::output_of_state(state)
-    }
-
-    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
-        ImagePart::merge(parts)
+    fn settings(&self) -> &LightTracerSettings {
+        &self.settings
     }
 }
 
@@ -100,10 +84,12 @@ impl LightTracer {
     pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<ImageRun, RenderError> {
         self.render_run_session(scene, job, progress, Session::default(), false)
     }
+}
 
+impl ImageIntegrator for LightTracer {
     /// [`Self::render_run`] under a session (`crate::state`): resumed, sharded, stopped early;
     /// with `save`, `ImageRun::state` holds the state reached.
-    pub fn render_run_session(
+    fn render_run_session(
         &self,
         scene: &Scene,
         job: &RenderJob,

@@ -6,7 +6,7 @@ pub mod bdpt;
 pub mod driver;
 pub mod ensemble;
 pub mod light_tracing;
-pub mod memory;
+pub mod memory_estimate;
 pub mod path_space;
 pub mod pss;
 pub mod pt;
@@ -115,6 +115,66 @@ pub trait Integrator: Send + Sync {
             "the {} integrator cannot be interrupted and resumed, checkpointed or sharded yet",
             self.name()
         )))
+    }
+}
+
+/// An integrator as its module writes it: the name users select it by, its settings and the engine
+/// that runs it. Every `Plugin` is an [`Integrator`] through the one implementation below, so an
+/// integrator module writes its algorithm and one `Plugin` block, no `Integrator` glue: image
+/// integrators (pt, bdpt, light) run on [`driver::ImageEngine`] through
+/// [`driver::ImageIntegrator`], the Markov chain integrators (pssmlt, mmlt, rjmlt, pmlt, emlt) on
+/// [`driver::ChainEngine`] through [`driver::ChainIntegrator`].
+pub trait Plugin: Send + Sync {
+    /// How renders of this integrator run: checkpoints, resume, shards and merges included.
+    type Engine: Engine<Self>;
+    /// The settings in effect (reported in the stats JSON).
+    type Settings: serde::Serialize;
+    /// The name users select it by (`integrator = "pt"`): its registry row's.
+    fn plugin_name(&self) -> &'static str;
+    fn settings(&self) -> &Self::Settings;
+}
+
+/// Runs renders of integrators of type `I` under sessions: what `Integrator::run_session`,
+/// `output_of_state` and `merge_parts` do for every integrator of one kind.
+pub trait Engine<I: ?Sized> {
+    fn run_session(
+        integrator: &I,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+        save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError>;
+    fn output_of_state(integrator: &I, state: &RenderState) -> Result<RenderOutput, RenderError>;
+    fn merge_parts(parts: &[&[u8]]) -> Result<Vec<u8>, RenderError>;
+}
+
+impl<P: Plugin> Integrator for P {
+    fn name(&self) -> &'static str {
+        self.plugin_name()
+    }
+
+    fn settings_json(&self) -> serde_json::Value {
+        serde_json::to_value(self.settings()).unwrap_or(serde_json::Value::Null)
+    }
+
+    fn run_session(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+        save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
+        P::Engine::run_session(self, scene, job, progress, session, save)
+    }
+
+    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
+        P::Engine::output_of_state(self, state)
+    }
+
+    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
+        P::Engine::merge_parts(parts)
     }
 }
 

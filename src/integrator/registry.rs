@@ -9,11 +9,11 @@
 //! values in effect for the parameters (the defaults for an empty table), as the render's JSON
 //! reports them; unknown keys are refused with the valid ones (`settings_from_table`).
 
-use super::{bdpt, ensemble, light_tracing, memory, path_space, pss, pt, Integrator, RenderError};
+use super::{bdpt, ensemble, light_tracing, memory_estimate, path_space, pss, pt, Integrator, RenderError};
 use crate::job::memory::{available_memory, check_fits, RenderMemory};
 use crate::job::{check_budget, Budget};
 use crate::scene::Scene;
-use pss::settings::MltVariant;
+use pss::mlt_settings::MltVariant;
 
 /// Where an integrator's work units live (`driver`'s render model).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -60,7 +60,7 @@ pub struct Row {
     /// Builds it from the scene's `[integrator]` table merged with `--set` overrides; unknown keys
     /// and invalid values are errors.
     pub create: fn(&toml::Table) -> Result<Box<dyn Integrator>, RenderError>,
-    /// Its film, pass buffers and chains for a `width`×`height` film (`integrator::memory`).
+    /// Its film, pass buffers and chains for a `width`×`height` film (`integrator::memory_estimate`).
     pub memory: fn(&toml::Table, u32, u32) -> Result<RenderMemory, RenderError>,
     pub capabilities: Capabilities,
 }
@@ -114,49 +114,49 @@ pub const INTEGRATORS: &[Row] = &[
     Row {
         name: "pt",
         create: |p| Ok(Box::new(pt::PathTracer::from_params(p)?)),
-        memory: memory::image_memory,
+        memory: memory_estimate::image_memory,
         capabilities: Capabilities::sessions(Space::Image),
     },
     Row {
         name: "bdpt",
         create: |p| Ok(Box::new(bdpt::Bdpt::from_params(p)?)),
-        memory: memory::image_memory,
+        memory: memory_estimate::image_memory,
         capabilities: Capabilities::sessions(Space::Image),
     },
     Row {
         name: "light",
         create: |p| Ok(Box::new(light_tracing::LightTracer::from_params(p)?)),
-        memory: memory::image_memory,
+        memory: memory_estimate::image_memory,
         capabilities: Capabilities::sessions(Space::Image),
     },
     Row {
         name: "pssmlt",
         create: |p| Ok(Box::new(pss::mlt::Mlt::from_params(MltVariant::Pssmlt, p)?)),
-        memory: |p, w, h| memory::mlt_memory(MltVariant::Pssmlt, p, w, h),
+        memory: |p, w, h| memory_estimate::mlt_memory(MltVariant::Pssmlt, p, w, h),
         capabilities: Capabilities::sessions(Space::Chain),
     },
     Row {
         name: "mmlt",
         create: |p| Ok(Box::new(pss::mlt::Mlt::from_params(MltVariant::Mmlt, p)?)),
-        memory: |p, w, h| memory::mlt_memory(MltVariant::Mmlt, p, w, h),
+        memory: |p, w, h| memory_estimate::mlt_memory(MltVariant::Mmlt, p, w, h),
         capabilities: Capabilities::sessions(Space::Chain),
     },
     Row {
         name: "rjmlt",
         create: |p| Ok(Box::new(pss::mlt::Mlt::from_params(MltVariant::Rjmlt, p)?)),
-        memory: |p, w, h| memory::mlt_memory(MltVariant::Rjmlt, p, w, h),
+        memory: |p, w, h| memory_estimate::mlt_memory(MltVariant::Rjmlt, p, w, h),
         capabilities: Capabilities::sessions(Space::Chain),
     },
     Row {
         name: "pmlt",
         create: |p| Ok(Box::new(path_space::Pmlt::from_params(p)?)),
-        memory: memory::pmlt_memory,
+        memory: memory_estimate::pmlt_memory,
         capabilities: Capabilities::sessions(Space::Chain),
     },
     Row {
         name: "emlt",
-        create: |p| Ok(Box::new(ensemble::render::Emlt::from_params(p)?)),
-        memory: memory::emlt_memory,
+        create: |p| Ok(Box::new(ensemble::emlt_render::Emlt::from_params(p)?)),
+        memory: memory_estimate::emlt_memory,
         capabilities: Capabilities::sessions(Space::Chain),
     },
 ];

@@ -1,7 +1,7 @@
 //! The memory a render holds and the memory the process may use: the types an estimate is made of
 //! (`SceneMemory`, measured on the built scene; `RenderMemory`, the scene plus the buffers that grow
 //! with the budget's dimensions), the process's available memory and the check between them. Each
-//! integrator's estimate of its own buffers is `integrator::memory`'s; `plexus info` prints the
+//! integrator's estimate of its own buffers is `integrator::memory_estimate`'s; `plexus info` prints the
 //! same estimate that `render` checks.
 //!
 //! Every count is checked arithmetic, so that a scene, film or Markov chain setup that would not

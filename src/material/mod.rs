@@ -19,6 +19,8 @@ mod tests;
 #[cfg(test)]
 mod tests_precision;
 #[cfg(test)]
+mod tests_sampling;
+#[cfg(test)]
 mod tests_surface;
 #[cfg(test)]
 mod tests_transmission;

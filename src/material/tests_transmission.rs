@@ -6,7 +6,8 @@
 
 use glam::Vec3;
 
-use super::tests::{chi2_cfg, dir, rng_u3, rng_u4, u_dist, CapParam};
+use super::tests::{chi2_cfg, dir, rng_u3, rng_u4, CapParam};
+use super::tests_sampling::u_dist;
 use super::*;
 use crate::sampling::chi2::{chi2_test, integrate_2d_to, Chi2Config};
 use crate::sampling::Rng;

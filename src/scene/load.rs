@@ -6,19 +6,23 @@ use std::collections::BTreeMap;
 use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
 
-use glam::{Mat3, Mat4, Vec3};
+use glam::{Mat4, Vec3};
 
-use super::desc::{CameraDesc, ColorDesc, EnvironmentDesc, PortalDesc, RenderSettingsDesc, SceneDesc, ShapeDesc};
+use super::desc::{CameraDesc, RenderSettingsDesc, SceneDesc, ShapeDesc};
 use super::error::{fmt3, SceneError};
 use super::mesh_io::{self, RawMesh};
-use super::{shapes, transform, Portal, Scene, ShapeInfo};
+use super::{shapes, transform, Scene, ShapeInfo};
 use crate::accel::{self, AccelKind};
 use crate::camera::Camera;
 use crate::geometry::{Aabb, TriangleMesh};
-use crate::light::{AreaLight, ConstantEnvironment, EmitterKind, ImageEnvironment, Light, LightSampler};
+use crate::light::{AreaLight, Light, LightSampler};
 use crate::spectrum::Rgb;
 
+mod lights;
 mod materials;
+mod values;
+
+pub use values::{DEFAULT_IOR, DEFAULT_ROUGHNESS, MAX_EXTENT, MAX_RADIANCE, MIN_EXTENT};
 
 /// A built scene together with the render settings its file asked for.
 pub struct LoadedScene {
@@ -233,62 +237,6 @@ impl Builder<'_> {
         Ok(())
     }
 
-    /// `radiance` (already multiplied by its `scale`), refused when a component exceeds
-    /// [`MAX_RADIANCE`].
-    fn radiance_in_range(&self, key: &str, radiance: Rgb) -> Result<Rgb, SceneError> {
-        if radiance.is_finite() && radiance.max_element() <= MAX_RADIANCE {
-            return Ok(radiance);
-        }
-        Err(self.err(
-            key,
-            format!(
-                "radiance × scale = [{:e}, {:e}, {:e}] exceeds the largest radiance plexus accepts, {MAX_RADIANCE:e}",
-                radiance.x, radiance.y, radiance.z
-            ),
-        ))
-    }
-
-    /// Refuses lights whose flux (radiance × area × π, the light sampler's weight) or whose sum
-    /// overflows f32: the selection distribution would be NaN. Within the radiance and scale
-    /// ranges this takes a bright emitter of a huge area (1e20 × 1e24 units² overflows).
-    fn check_light_power(&self, lights: &[Light], infos: &[ShapeInfo]) -> Result<(), SceneError> {
-        let mut total = 0.0f64;
-        for (index, light) in lights.iter().enumerate() {
-            let power = light.power();
-            total += power as f64;
-            if !(power.is_finite() && total <= f32::MAX as f64) {
-                let key = match infos.iter().position(|info| info.light == Some(index as u32)) {
-                    Some(geom_id) => format!("shapes[{geom_id}].emission"),
-                    None => "environment".to_string(),
-                };
-                return Err(self.err(
-                    key,
-                    format!(
-                        "the emitted power (radiance × area × π) overflows f32 ({power:e}, all lights {total:e}): \
-                         lower the radiance or the scene's scale"
-                    ),
-                ));
-            }
-        }
-        Ok(())
-    }
-
-    /// Refuses a delta emitter (point, spot, directional light): the bidirectional MIS weights
-    /// (integrator/bdpt/mis.rs) assume every emitter has area or lies at infinity, and would give
-    /// its paths wrong weights without any sign in the image's statistics.
-    fn refuse_delta_emitter(&self, key: &str, name: &str, kind: EmitterKind) -> Result<(), SceneError> {
-        if kind.is_delta() {
-            return Err(self.err(
-                key,
-                format!(
-                    "emitter '{name}' is a {kind} light, which plexus does not support: the bidirectional \
-                     integrators' MIS weights assume every emitter has area or lies at infinity"
-                ),
-            ));
-        }
-        Ok(())
-    }
-
     fn camera(&self, c: &CameraDesc) -> Result<Camera, SceneError> {
         let position = self.finite_vec("camera.position", c.position)?;
         let look_at = self.finite_vec("camera.look_at", c.look_at)?;
@@ -421,163 +369,6 @@ impl Builder<'_> {
         })
     }
 
-    /// Splits a transform error "sub.key: message" into the key path and the message.
-    fn split_err(&self, prefix: &str, e: &str) -> SceneError {
-        match e.split_once(": ") {
-            Some((sub, msg)) if !sub.contains(' ') => self.err(format!("{prefix}.{sub}"), msg),
-            _ => self.err(prefix, e),
-        }
-    }
-
-    fn subdivisions(&self, key: &str, v: Option<i64>, default: u32, min: i64, max: i64) -> Result<u32, SceneError> {
-        match v {
-            None => Ok(default),
-            Some(n) if (min..=max).contains(&n) => Ok(n as u32),
-            Some(n) => Err(self.err(key, format!("expected an integer in [{min}, {max}], got {n}"))),
-        }
-    }
-
-    fn environment(&self, env: &EnvironmentDesc, bounds: &Aabb) -> Result<Light, SceneError> {
-        let allowed: &[&str] = match env.kind.as_str() {
-            "constant" => &["radiance", "scale"],
-            "image" => &["file", "scale", "rotate"],
-            "sunsky" | "sky" => &["sun_direction", "up", "turbidity", "albedo", "sun_scale", "sky_scale"],
-            "sun" => &["sun_direction", "up", "turbidity", "sun_scale"],
-            other => {
-                return Err(self.err(
-                    "environment.type",
-                    format!("expected one of: constant, image, sunsky, sun, sky, got '{other}'"),
-                ))
-            }
-        };
-        let present = [
-            ("radiance", env.radiance.is_some()),
-            ("file", env.file.is_some()),
-            ("scale", env.scale.is_some()),
-            ("rotate", env.rotate.is_some()),
-            ("sun_direction", env.sun_direction.is_some()),
-            ("up", env.up.is_some()),
-            ("turbidity", env.turbidity.is_some()),
-            ("albedo", env.albedo.is_some()),
-            ("sun_scale", env.sun_scale.is_some()),
-            ("sky_scale", env.sky_scale.is_some()),
-        ];
-        for (k, p) in present {
-            if p && !allowed.contains(&k) {
-                return Err(self.err(
-                    "environment",
-                    format!("key '{k}' does not apply to type '{}' (expected: type, {})", env.kind, allowed.join(", ")),
-                ));
-            }
-        }
-        if matches!(env.kind.as_str(), "sunsky" | "sun" | "sky") {
-            return self.sunsky(env, bounds);
-        }
-        let scale = env.scale.unwrap_or(1.0);
-        if !(scale >= 0.0 && scale.is_finite()) {
-            return Err(self.err("environment.scale", format!("expected a finite number ≥ 0, got {scale}")));
-        }
-        if env.kind == "constant" {
-            let c = env.radiance.ok_or_else(|| self.err("environment", "a 'constant' environment needs 'radiance'"))?;
-            let radiance = self.color("environment.radiance", c, "every component ≥ 0", |v| v >= 0.0)?;
-            let radiance = self.radiance_in_range("environment", radiance * scale)?;
-            return Ok(Light::ConstantEnvironment(ConstantEnvironment::new(radiance, *bounds)));
-        }
-        let file = env
-            .file
-            .as_deref()
-            .ok_or_else(|| self.err("environment", "an 'image' environment needs 'file' (an EXR)"))?;
-        let path = self.base_dir.join(file);
-        let image = crate::film::exr_io::read_exr(&path).map_err(|e| self.err("environment.file", e.to_string()))?;
-        if image.width == 0 || image.height == 0 {
-            return Err(self.err("environment.file", format!("image '{}': expected a non-empty image", path.display())));
-        }
-        if let Some(i) = image.pixels.iter().position(|p| !(p.is_finite() && p.min_element() >= 0.0)) {
-            let p = image.pixels[i];
-            return Err(self.err(
-                "environment.file",
-                format!(
-                    "image '{}': expected finite texels ≥ 0, got {} at pixel ({}, {})",
-                    path.display(),
-                    fmt3(p.to_array()),
-                    i % image.width,
-                    i / image.width
-                ),
-            ));
-        }
-        // The brightest texel channel (and where), as the renderer will see it: times `scale`.
-        let (brightest, at) = image
-            .pixels
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (p.max_element(), i))
-            .fold((0.0f32, 0), |best, x| if x.0 > best.0 { x } else { best });
-        if brightest as f64 * scale as f64 > MAX_RADIANCE as f64 {
-            return Err(self.err(
-                "environment.file",
-                format!(
-                    "image '{}': texel ({}, {}) = {brightest:e} times scale {scale:e} exceeds the largest radiance \
-                     plexus accepts, {MAX_RADIANCE:e}",
-                    path.display(),
-                    at % image.width,
-                    at / image.width
-                ),
-            ));
-        }
-        let rotation = match &env.rotate {
-            Some(r) => transform::rotation_matrix(r).map_err(|e| self.split_err("environment", &e))?,
-            None => Mat3::IDENTITY,
-        };
-        // `rotate` turns the map in the world; lookups need the inverse, world to map.
-        let to_local = rotation.transpose();
-        Ok(Light::ImageEnvironment(ImageEnvironment::new(
-            image.width,
-            image.height,
-            image.pixels,
-            scale,
-            to_local,
-            *bounds,
-        )))
-    }
-
-    fn portal(&self, i: usize, p: &PortalDesc) -> Result<Portal, SceneError> {
-        let key = format!("portals[{i}]");
-        let (corner, edge_u, edge_v) = match (p.corner, p.edge_u, p.edge_v, &p.transform) {
-            (Some(c), Some(u), Some(v), None) => (
-                self.finite_vec(&format!("{key}.corner"), c)?,
-                self.finite_vec(&format!("{key}.edge_u"), u)?,
-                self.finite_vec(&format!("{key}.edge_v"), v)?,
-            ),
-            (None, None, None, Some(t)) => {
-                let m = transform::matrix_from_desc(t).map_err(|e| self.split_err(&format!("{key}.transform"), &e))?;
-                // The unit quad [-1, 1]² of a `quad` shape, placed by the transform.
-                let c = m.transform_point3(Vec3::new(-1.0, -1.0, 0.0));
-                (
-                    c,
-                    m.transform_point3(Vec3::new(1.0, -1.0, 0.0)) - c,
-                    m.transform_point3(Vec3::new(-1.0, 1.0, 0.0)) - c,
-                )
-            }
-            _ => {
-                return Err(self.err(
-                    key,
-                    "expected either 'corner', 'edge_u' and 'edge_v', or 'transform' (a unit quad placed by it)",
-                ))
-            }
-        };
-        if edge_u.cross(edge_v).length_squared() == 0.0 {
-            return Err(self.err(
-                key,
-                format!(
-                    "expected edges spanning a quad of non-zero area, got edge_u = {} and edge_v = {}",
-                    fmt3(edge_u.to_array()),
-                    fmt3(edge_v.to_array())
-                ),
-            ));
-        }
-        Ok(Portal { corner, edge_u, edge_v })
-    }
-
     fn render(
         &self,
         integrator: Option<toml::Table>,
@@ -653,97 +444,5 @@ impl Builder<'_> {
             outputs,
             accel: accel_override.or(r.accel).unwrap_or_default(),
         })
-    }
-
-    fn finite_vec(&self, key: &str, v: [f32; 3]) -> Result<Vec3, SceneError> {
-        let v3 = Vec3::from(v);
-        if v3.is_finite() {
-            Ok(v3)
-        } else {
-            Err(self.err(key, format!("expected three finite numbers, got {}", fmt3(v))))
-        }
-    }
-
-    /// A colour whose every component passes `ok` (and is finite).
-    fn color(&self, key: &str, c: ColorDesc, what: &str, ok: impl Fn(f32) -> bool) -> Result<Rgb, SceneError> {
-        if c.0.iter().all(|&v| v.is_finite() && ok(v)) {
-            Ok(Rgb::from(c.0))
-        } else {
-            Err(self.err(key, format!("expected [r, g, b] with {what}, got {}", fmt3(c.0))))
-        }
-    }
-
-    fn reflectance(&self, key: &str, c: Option<ColorDesc>, default: f32) -> Result<Rgb, SceneError> {
-        match c {
-            None => Ok(Rgb::splat(default)),
-            Some(c) => self.color(key, c, "every component in [0, 1]", |v| (0.0..=1.0).contains(&v)),
-        }
-    }
-
-    fn roughness(&self, key: &str, r: Option<f32>) -> Result<f32, SceneError> {
-        match r {
-            None => Ok(DEFAULT_ROUGHNESS),
-            Some(a) if (0.0..=MAX_ROUGHNESS).contains(&a) => Ok(a),
-            Some(a) => {
-                Err(self.err(key, format!("expected a number in [0, {MAX_ROUGHNESS}] (the GGX alpha), got {a}")))
-            }
-        }
-    }
-
-    fn ior(&self, key: &str, ior: Option<f32>) -> Result<f32, SceneError> {
-        match ior {
-            None => Ok(DEFAULT_IOR),
-            Some(v) if v > 0.0 && v.is_finite() => Ok(v),
-            Some(v) => Err(self.err(key, format!("expected a number > 0, got {v}"))),
-        }
-    }
-}
-
-/// The largest GGX α a material may have. At α = 1 the microfacets are already as rough as any
-/// measured surface, and far beyond it GGX is a cosine-like lobe that changes no more; past about
-/// 1e9 its α⁴ overflows f32 and contributions become non-finite. 100 keeps every rough material
-/// plexus renders far from that.
-pub const MAX_ROUGHNESS: f32 = 100.0;
-
-/// The smallest scene extent (in scene units) plexus renders correctly; see `Builder::check_scale`.
-pub const MIN_EXTENT: f32 = 1e-9;
-/// The largest scene extent and coordinate plexus renders correctly; see `Builder::check_scale`.
-pub const MAX_EXTENT: f32 = 1e12;
-
-/// The largest radiance component (after `scale`) an emitter or environment texel may have. The
-/// integrators multiply radiance by path throughputs (BSDF/pdf ratios, and G·A/pdf factors of
-/// sampled light points: A/h² reaches 1e14 for a point 1e-7 of the scene's extent from a light's
-/// plane) before the film sums it in f64 and writes the image in f32 (at most 3.4e38): 1e20 leaves
-/// those factors 18 decades of headroom. Environment texels of 3e38 (which once rendered black
-/// or wrote Inf pixels) are far beyond it.
-pub const MAX_RADIANCE: f32 = 1e20;
-
-/// Roughness (GGX alpha) when a conductor or plastic gives none.
-pub const DEFAULT_ROUGHNESS: f32 = 0.1;
-/// Index of refraction when a dielectric or plastic gives none (glass).
-pub const DEFAULT_IOR: f32 = 1.5;
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// No scene syntax makes a delta emitter yet, so the refusal is tested on the kinds: both delta
-    /// kinds are refused with a one-line message naming the emitter and the reason, the kinds the
-    /// loader builds pass. (Without the check, a delta emitter loads and BDPT weights it wrongly.)
-    #[test]
-    fn delta_emitters_are_refused_with_the_reason() {
-        let builder = Builder { file: "scene.toml", base_dir: Path::new("") };
-        for kind in [EmitterKind::DeltaPosition, EmitterKind::DeltaDirection] {
-            let err = builder.refuse_delta_emitter("lights[0]", "key light", kind).expect_err("delta refused");
-            let msg = err.to_string();
-            assert!(matches!(err, SceneError::Invalid { .. }), "{msg}");
-            assert!(!msg.contains('\n'), "one line: {msg}");
-            for part in ["scene.toml: lights[0]: ", "'key light'", "delta-", "MIS weights"] {
-                assert!(msg.contains(part), "{part:?} missing from: {msg}");
-            }
-        }
-        for kind in [EmitterKind::Area, EmitterKind::Infinite] {
-            assert!(builder.refuse_delta_emitter("shapes[0].emission", "quad", kind).is_ok());
-        }
     }
 }

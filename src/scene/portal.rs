@@ -1,7 +1,7 @@
 //! The one query a portal answers: where a segment or ray crosses it (the portal paper's Sec. 4.2,
 //! "a ray-quad intersection algorithm similar to the Möller–Trumbore algorithm"). Portals are never
 //! part of the acceleration structure: only the path-space portal perturbation
-//! (`integrator::path_space::portal`) asks this, so a scene without portals pays nothing.
+//! (`integrator::path_space::portal_perturbation`) asks this, so a scene without portals pays nothing.
 //!
 //! In f64: the perturbation pivots a path edge about the crossing point and must find the same
 //! crossing again on the new edge (its reverse-consistency check), which f32's ~1e-7 relative error

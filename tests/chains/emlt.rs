@@ -30,6 +30,7 @@ use crate::common::ensemble::{emlt_agrees_with_reference, emlt_renders, emlt_wit
 use crate::common::scenes::{reference, scene};
 
 use plexus::film::Image;
+use plexus::integrator::driver::ChainIntegrator;
 use plexus::integrator::{create, Budget, NoProgress, RenderJob};
 use plexus::scene::Scene;
 
@@ -165,7 +166,7 @@ fn emlt_time_budget_runs_on_the_drivers_clock() {
     };
     let job = RenderJob { budget: Budget::Seconds(0.001), seed: 5, threads: 2 };
     let session = plexus::state::Session::default();
-    let run = emlt.render_on_clock(&scene, &job, &progress, &session, false, clock.clone()).expect("render");
+    let run = emlt.run_on_clock(&scene, &job, &progress, &session, false, clock.clone()).expect("render");
     let stats = &run.output.extra_stats;
     assert_eq!(stats["ensemble"]["swaps"], 5, "{stats}");
     assert_eq!(stats["ensemble"]["iterations_per_swap"], 8);

@@ -176,7 +176,7 @@ fn all_strategies_agree_on_cornell_glass() {
 /// reuses x̄'s similarity weights (x̄'s κ about ȳ's direction; x̄'s guide selection probability for
 /// the hemispherical kernel) gave worst |z| 1.33 / 2.22 and 1.36 / 2.15 (measured once, not kept
 /// as a switch): the weights hardly change over one move. The kernels' own tests
-/// (`integrator::ensemble::{directional, kernel}`) reject their wrong densities.
+/// (`integrator::ensemble::{directional, guided_kernel}`) reject their wrong densities.
 #[test]
 fn all_strategies_agree_on_the_environment_scene() {
     for kernel in ["directional", "hemispherical"] {

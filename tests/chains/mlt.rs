@@ -327,7 +327,7 @@ fn mlt_small_step_setting_is_validated() {
 #[test]
 fn mlt_film_is_independent_of_the_thread_count() {
     use plexus::integrator::pss::mlt::Mlt;
-    use plexus::integrator::pss::settings::MltVariant;
+    use plexus::integrator::pss::mlt_settings::MltVariant;
     let params: toml::Table = toml::from_str("max_depth = 5\nbootstrap = 1000\nchains = 6").expect("test parameters");
     for (variant, depths, scene_name, mutations_per_pixel) in [
         (MltVariant::Pssmlt, 1, "cornell-box", 8),

@@ -4,7 +4,7 @@
 //! tests/common/agreement.rs, and the deliberately wrong variant (the acceptance ratio without its
 //! G terms) rejected by the same test. These scene-level tests are the portal move's only tests:
 //! the library has no unit tests of its density, its reverse consistency or its early rejections
-//! (`integrator::path_space::portal` derives them in its module doc), so a wrong density shows
+//! (`integrator::path_space::portal_perturbation` derives them in its module doc), so a wrong density shows
 //! here only as far as it moves the region shares.
 //!
 //! # The share test against a committed reference
@@ -27,7 +27,7 @@ use crate::common::scenes::{reference, scene};
 
 use plexus::film::exr_io::read_exr;
 use plexus::film::Image;
-use plexus::integrator::path_space::portal::PortalPerturbation;
+use plexus::integrator::path_space::portal_perturbation::PortalPerturbation;
 use plexus::integrator::path_space::Pmlt;
 use plexus::scene::Scene;
 

@@ -46,7 +46,7 @@ use crate::common::agreement::{assert_agree, estimate};
 use crate::common::ensemble::{chain_renders, print_strategies, share_test, ShareTest};
 use crate::common::scenes::{reference, scene};
 
-use plexus::integrator::ensemble::render::Emlt;
+use plexus::integrator::ensemble::emlt_render::Emlt;
 use plexus::integrator::path_space::Pmlt;
 use plexus::integrator::{create, Integrator};
 

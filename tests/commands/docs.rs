@@ -3,12 +3,12 @@
 //!
 //! For the reference pages (README.md, docs/architecture.md and the other pages of docs/ that
 //! describe the code) and the lab notebook's index:
-//! - every **source path** a page names in backticks (`src/integrator/pt.rs`, `pss/inverse.rs`,
+//! - every **source path** a page names in backticks (`src/integrator/pt/mod.rs`, `pss/inverse.rs`,
 //!   `scripts/fuzz.sh`, `tests/common/agreement.rs::assert_shares_agree`) exists in the repository:
 //!   a path under one of the repository's top-level directories exactly, a bare `*.rs` path as the
 //!   tail of a file under `src/`, `tests/` or `examples/`;
 //! - every **module path** (`integrator::path_space::retrace`, `plexus::bench::run`,
-//!   `pss::bootstrap::BATCH`) names modules that exist under `src/` and items that appear in them;
+//!   `driver::bootstrap::BATCH`) names modules that exist under `src/` and items that appear in them;
 //! - every **command-line flag** a page gives a `plexus` verb (`plexus render ... --spp 16`, or
 //!   `--spp N` under a heading that names the verb) is one that verb's `--help` lists.
 //!
@@ -299,7 +299,7 @@ impl Repo {
     }
 
     /// The files of the module `segments` names, looked for from `src/` and then as the tail of
-    /// any module path (so `pss::bootstrap` finds `src/integrator/pss/bootstrap.rs`).
+    /// any module path (so `driver::bootstrap` finds `src/integrator/driver/bootstrap.rs`).
     fn module(&self, segments: &[&str]) -> Option<&Vec<PathBuf>> {
         let path = segments.join("/");
         self.modules
@@ -674,9 +674,9 @@ fn test_repo() -> Repo {
 #[test]
 fn the_checker_rejects_a_page_with_a_bogus_path_module_flag_or_link() {
     let repo = test_repo();
-    let good = "# Title\n\n## `render`\n\nSee `src/integrator/pt.rs`, `pss/inverse.rs`, \
+    let good = "# Title\n\n## `render`\n\nSee `src/integrator/pt/mod.rs`, `pss/inverse.rs`, \
                 `tests/common/agreement.rs::assert_shares_agree`, `integrator::path_space::retrace`, \
-                `plexus::bench::run`, `pss::bootstrap::BATCH` and `Mlt::propose_jump`; `--spp 16`.\n\n\
+                `plexus::bench::run`, `driver::bootstrap::BATCH` and `Mlt::propose_jump`; `--spp 16`.\n\n\
                 ```\nplexus render scene.toml --spp 4 -o x.exr | cargo test --release\n```\n\n\
                 [back](#title), [bench](docs/bench.md#what-it-measures).\n";
     assert!(findings("README.md", good, &repo).is_empty(), "{:?}", findings("README.md", good, &repo));

@@ -118,7 +118,7 @@ fn an_mlt_bootstrap_that_does_not_fit_is_refused_with_the_estimate() {
 
 /// emlt's ensembles are in the estimate: 2 × 2^23 chains of two paths of 1026 vertices each (and
 /// the views of Y) are petabytes, refused before the bootstrap starts. Before emlt had a branch in
-/// `integrator::memory`, the same command started rendering (its bootstrap, then 2^24 chains'
+/// `integrator::memory_estimate`, the same command started rendering (its bootstrap, then 2^24 chains'
 /// allocations).
 #[test]
 fn emlt_ensembles_that_do_not_fit_are_refused_with_the_estimate() {

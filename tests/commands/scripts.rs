@@ -4,7 +4,8 @@
 //! Each script gets the strongest check its dependencies allow here:
 //! - a **real run** at a tiny size where everything it needs is in the repository and the built
 //!   binary (`bench-bdpt-vs-pt.sh`, `bench-mlt.sh` with `fig4_table.py`, `bench-time-budgets.sh`,
-//!   `large-scene.py`, `large-scene.sh`, `stress_second_interrupt.py`, `plexus-binary.sh`);
+//!   `large-scene.py`, `large-scene.sh`, `stress_second_interrupt.py`, `plexus-binary.sh`,
+//!   `same-images.sh`);
 //! - a run against a **stand-in** for the expensive program it drives, whose recorded arguments are
 //!   then checked against the real one: `make-references.sh` (a stand-in `plexus` that records each
 //!   call: every scene it names exists and every flag is one `plexus reference --help` lists) and
@@ -49,6 +50,7 @@ const CHECKED: &[(&str, &str)] = &[
     ("peers.py", "syntax"),
     ("peers.sh", "syntax"),
     ("plexus-binary.sh", "run"),
+    ("same-images.sh", "run"),
     ("stress_second_interrupt.py", "run"),
 ];
 
@@ -254,6 +256,42 @@ fn large_scene_scripts_run_at_a_tiny_size() {
     } else {
         println!("/usr/bin/time is missing (Debian's `time` package): large-scene.sh checked for syntax only");
     }
+}
+
+/// same-images.sh finds a binary the same as itself and tells a different one apart: the second
+/// "binary" is the real one with every `--seed` value changed, so its images differ.
+#[test]
+fn same_images_sh_tells_same_from_different_binaries() {
+    let dir = temp_dir("same-images");
+    let args = ["--scenes", "cornell-box", "--integrators", "pt,pmlt", "--size", "8x8", "--spp", "1"];
+    let script = script("same-images.sh");
+    let script = script.to_str().expect("utf-8 path");
+    let same = run("bash", &[&[script, plexus_bin(), plexus_bin()][..], &args].concat(), &[]);
+    let t = assert_ok("same-images.sh with one binary twice", &same);
+    assert_eq!(t.lines().filter(|l| l.starts_with("same cornell-box")).count(), 2, "{t}");
+
+    let other_seed = dir.path().join("plexus-other-seed");
+    std::fs::write(
+        &other_seed,
+        format!(
+            "#!/bin/sh\nfor a in \"$@\"; do\n  shift\n  if [ \"$prev\" = --seed ]; then a=$((a + 1)); fi\n  \
+             set -- \"$@\" \"$a\"; prev=$a\ndone\nexec {} \"$@\"\n",
+            plexus_bin()
+        ),
+    )
+    .expect("write stand-in");
+    std::process::Command::new("chmod").args(["+x", other_seed.to_str().unwrap()]).status().expect("chmod");
+    let differ = run("bash", &[&[script, plexus_bin(), other_seed.to_str().unwrap()][..], &args].concat(), &[]);
+    let t = text(&differ);
+    assert_eq!(differ.status.code(), Some(1), "a different binary must fail the check:\n{t}");
+    assert_eq!(t.lines().filter(|l| l.starts_with("DIFF cornell-box")).count(), 2, "{t}");
+    // The shrunk scene copies are removed.
+    let leftovers = std::fs::read_dir(root().join("scenes"))
+        .expect("scenes/")
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with(".same-images-"))
+        .count();
+    assert_eq!(leftovers, 0, "same-images.sh left its scene copies in scenes/");
 }
 
 #[test]

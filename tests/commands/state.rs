@@ -7,9 +7,11 @@ use std::path::Path;
 
 use plexus::camera::Camera;
 use plexus::film::Image;
-use plexus::integrator::driver::{ImagePart, ImageRender, RunControl};
+use plexus::integrator::driver::{ImageEngine, ImageIntegrator, ImageRender, ImageRun, RunControl};
 use plexus::integrator::registry::{self, Capabilities, Row, Space};
-use plexus::integrator::{create, Budget, Integrator, NoProgress, Progress, RenderError, RenderJob, RenderOutput};
+use plexus::integrator::{
+    create, Budget, Integrator, NoProgress, Plugin, Progress, RenderError, RenderJob, RenderOutput,
+};
 use plexus::job::memory::RenderMemory;
 use plexus::sampling::UniformSource;
 use plexus::scene::{load_scene, Scene};
@@ -185,7 +187,7 @@ fn merged_shards_equal_the_unsharded_render_within_rounding() {
                 .collect();
             // pmlt's merged per-slot statistics once made its shard bytes depend on the threads
             // (an f64 sum of acceptance probabilities, added slot by slot): this check failed for
-            // it then, and passes since that sum is exact (`pss::stats::ProbabilitySum`).
+            // it then, and passes since that sum is exact (`pss::mlt_stats::ProbabilitySum`).
             if n == 2 {
                 // A shard's bytes depend on its units only, not on the threads that rendered it.
                 let one_thread = RenderJob { threads: 1, ..job.clone() };
@@ -285,25 +287,30 @@ impl Flat {
     }
 }
 
-impl Integrator for Flat {
-    fn name(&self) -> &'static str {
+impl Plugin for Flat {
+    type Engine = ImageEngine;
+    type Settings = Flat;
+
+    fn plugin_name(&self) -> &'static str {
         "flat"
     }
 
-    fn settings_json(&self) -> serde_json::Value {
-        serde_json::to_value(self).unwrap_or_default()
+    fn settings(&self) -> &Flat {
+        self
     }
+}
 
-    fn run_session(
+impl ImageIntegrator for Flat {
+    fn render_run_session(
         &self,
         scene: &Scene,
         job: &RenderJob,
         progress: &dyn Progress,
-        session: &Session,
+        session: Session,
         save: bool,
-    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
+    ) -> Result<ImageRun, RenderError> {
         let render =
-            ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?.with_session(*session, save)?;
+            ImageRender::new(job, scene.camera.width, scene.camera.height, progress)?.with_session(session, save)?;
         let value = self.value;
         let (run, _) = render.run(
             |_| (),
@@ -313,19 +320,12 @@ impl Integrator for Flat {
                 slot.counters.samples += 1;
             },
         );
-        Ok(run.into_session())
-    }
-
-    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
-        ImagePart::output_of_state(state)
-    }
-
-    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
-        ImagePart::merge(parts)
+        Ok(run)
     }
 }
 
-/// Registering an integrator is one row: with the row added to the shipped ones, the dummy is
+/// Registering an integrator is one row (and its module one `Plugin` block on an engine, no
+/// `Integrator` glue): with the row added to the shipped ones, the dummy is
 /// found by name (and an unknown name lists it), its row's memory estimate is what the limits check
 /// refuses, and it renders, checkpoints, is stopped, saved to a state file and resumed to the
 /// uninterrupted image bit for bit — through the library calls `plexus render` and `resume` make

@@ -9,7 +9,7 @@ use super::agreement::{
 use super::scenes::{reference, scene_at};
 
 use plexus::film::Image;
-use plexus::integrator::ensemble::render::Emlt;
+use plexus::integrator::ensemble::emlt_render::Emlt;
 use plexus::integrator::{Budget, Integrator, NoProgress, RenderJob};
 use plexus::scene::Scene;
 

@@ -33,13 +33,13 @@ pub use subpath::{
 };
 pub use vertex::{Vertex, VertexKind};
 
-use super::driver::{ImagePart, ImageRender, ImageRun};
-use super::{settings_from_table, Integrator, Progress, RenderError, RenderJob, RenderOutput};
+use super::driver::{ImageEngine, ImageIntegrator, ImageRender, ImageRun};
+use super::{settings_from_table, Plugin, Progress, RenderError, RenderJob};
 use crate::film::{Accumulator, SplatBuffer};
 use crate::sampling::{PixelSampler, SamplerKind, UniformSource};
 use crate::scene::Scene;
 use crate::spectrum::is_finite;
-use crate::state::{RenderState, Session};
+use crate::state::Session;
 use crate::stats::Counters;
 
 /// What subpath generation and technique evaluation need besides the subpaths: the scene and the
@@ -257,39 +257,16 @@ pub fn connect_all<S: UniformSource>(
     }
 }
 
-impl Integrator for Bdpt {
-    fn name(&self) -> &'static str {
+impl Plugin for Bdpt {
+    type Engine = ImageEngine;
+    type Settings = BdptSettings;
+
+    fn plugin_name(&self) -> &'static str {
         "bdpt"
     }
 
-    fn settings_json(&self) -> serde_json::Value {
-        serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
-    }
-
-    fn run_session(
-        &self,
-        scene: &Scene,
-        job: &RenderJob,
-        progress: &dyn Progress,
-        session: &Session,
-        save: bool,
-    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
-        if self.settings.technique_images && (session.resume.is_some() || session.shard.is_some()) {
-            // The layers are per-slot films (their low bits depend on the threads), not in a state.
-            return Err(crate::state::StateError::Mismatch(
-                "bdpt's technique_images layers are not saved in state files: resume or shard without them".into(),
-            )
-            .into());
-        }
-        self.render_run_session(scene, job, progress, *session, save).map(ImageRun::into_session)
-    }
-
-    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
-        ImagePart::output_of_state(state)
-    }
-
-    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
-        ImagePart::merge(parts)
+    fn settings(&self) -> &BdptSettings {
+        &self.settings
     }
 }
 
@@ -300,10 +277,12 @@ impl Bdpt {
     pub fn render_run(&self, scene: &Scene, job: &RenderJob, progress: &dyn Progress) -> Result<ImageRun, RenderError> {
         self.render_run_session(scene, job, progress, Session::default(), false)
     }
+}
 
+impl ImageIntegrator for Bdpt {
     /// [`Self::render_run`] under a session (`crate::state`): resumed, sharded, stopped early;
     /// with `save`, `ImageRun::state` holds the state reached.
-    pub fn render_run_session(
+    fn render_run_session(
         &self,
         scene: &Scene,
         job: &RenderJob,
@@ -311,6 +290,13 @@ impl Bdpt {
         session: Session,
         save: bool,
     ) -> Result<ImageRun, RenderError> {
+        if self.settings.technique_images && (session.resume.is_some() || session.shard.is_some()) {
+            // The layers are per-slot films (their low bits depend on the threads), not in a state.
+            return Err(crate::state::StateError::Mismatch(
+                "bdpt's technique_images layers are not saved in state files: resume or shard without them".into(),
+            )
+            .into());
+        }
         let (width, height) = (scene.camera.width, scene.camera.height);
         let render = ImageRender::new(job, width, height, progress)?
             .with_session(session, save)?

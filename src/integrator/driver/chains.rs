@@ -15,9 +15,12 @@ use std::time::Duration;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-use super::{state_film, CheckpointHook, Clock, Driver, PassBoundary, PassEdge, PassSet, Passes, RunStart, Slot};
+use super::{
+    state_film, CheckpointHook, Clock, Driver, PassBoundary, PassEdge, PassSet, Passes, RunStart, Slot, WallClock,
+};
 use crate::film::{Accumulator, Image};
-use crate::integrator::{Budget, Progress, RenderError, RenderJob, RenderOutput};
+use crate::integrator::{Budget, Engine, Progress, RenderError, RenderJob, RenderOutput};
+use crate::scene::Scene;
 use crate::spectrum::Rgb;
 use crate::state::{decode, encode, RenderState, Session, Shard, StateError, UnitState};
 use crate::stats::Counters;
@@ -40,8 +43,8 @@ pub trait ChainStats: Clone + Serialize + DeserializeOwned {
     fn clear_times(&mut self) {}
 }
 
-/// A chain integrator's side that needs no scene: its state's types and the normalised output of
-/// a film (a render's end, a resumed state's, merged shards').
+/// A chain integrator: its state's types, how it renders a scene on the runner, and the normalised
+/// output of a film (a render's end, a resumed state's, merged shards').
 pub trait ChainIntegrator {
     /// A chain, as the driver's unit: its streams and current state, saved through `UnitState`.
     type Unit: Serialize + DeserializeOwned + Send;
@@ -62,6 +65,45 @@ pub trait ChainIntegrator {
         boot: &Self::Boot,
         tally: Tally,
     ) -> Result<RenderOutput, RenderError>;
+
+    /// The render of `scene` under `session` with its time read from `clock` (the wall clock in
+    /// `Integrator::run_session`; a fake one in tests of the time budget): its `ChainRender` run by
+    /// [`run_chains`], with the unnormalised film and, with `save`, the state reached.
+    fn run_on_clock(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+        save: bool,
+        clock: Arc<dyn Clock>,
+    ) -> Result<ChainRun, RenderError>;
+}
+
+/// The engine of chain integrators (`integrator::Plugin`): [`ChainIntegrator::run_on_clock`] on
+/// the wall clock; their states are one [`ChainPart`].
+pub struct ChainEngine;
+
+impl<I: ChainIntegrator> Engine<I> for ChainEngine {
+    fn run_session(
+        integrator: &I,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+        save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
+        let run = integrator.run_on_clock(scene, job, progress, session, save, Arc::new(WallClock::new()))?;
+        Ok((run.output, run.state))
+    }
+
+    fn output_of_state(integrator: &I, state: &RenderState) -> Result<RenderOutput, RenderError> {
+        chain_output_of_state(integrator, state)
+    }
+
+    fn merge_parts(parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
+        merge_chain_parts::<I>(parts)
+    }
 }
 
 /// A bootstrap's outcome for render `R`: what the state keeps of it, its counters and, unless it

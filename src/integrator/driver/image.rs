@@ -8,8 +8,9 @@ use std::time::Duration;
 use super::MIN_SAMPLES_PER_PASS;
 use super::{CheckpointHook, Clock, Driver, PassBoundary, PassSet, Passes, RunStart, Slot, WallClock};
 use crate::film::Accumulator;
-use crate::integrator::{Budget, Progress, RenderError, RenderJob, RenderOutput};
+use crate::integrator::{Budget, Engine, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::{PixelSampler, Rng, SamplerKind};
+use crate::scene::Scene;
 use crate::state::{RenderState, Session, StateError};
 use crate::stats::Counters;
 
@@ -468,5 +469,44 @@ impl<'a> ImageRender<'a> {
             }),
         };
         (ImageRun { output, film: out.film, scale, state }, out.slot_states)
+    }
+}
+
+/// An integrator whose render is the image driver's (pt, bdpt, light): what it implements is its
+/// render under a session, with its unnormalised film; [`ImageEngine`] does the rest.
+pub trait ImageIntegrator {
+    /// The render under `session` (`crate::state`): resumed, sharded, stopped early; with `save`,
+    /// `ImageRun::state` holds the state reached.
+    fn render_run_session(
+        &self,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: Session,
+        save: bool,
+    ) -> Result<ImageRun, RenderError>;
+}
+
+/// The engine of image integrators (`integrator::Plugin`): their states are one [`ImagePart`].
+pub struct ImageEngine;
+
+impl<I: ImageIntegrator> Engine<I> for ImageEngine {
+    fn run_session(
+        integrator: &I,
+        scene: &Scene,
+        job: &RenderJob,
+        progress: &dyn Progress,
+        session: &Session,
+        save: bool,
+    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
+        integrator.render_run_session(scene, job, progress, *session, save).map(ImageRun::into_session)
+    }
+
+    fn output_of_state(_integrator: &I, state: &RenderState) -> Result<RenderOutput, RenderError> {
+        ImagePart::output_of_state(state)
+    }
+
+    fn merge_parts(parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
+        ImagePart::merge(parts)
     }
 }

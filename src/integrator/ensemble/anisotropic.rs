@@ -49,7 +49,7 @@
 use glam::{DVec2, DVec3};
 
 use super::directional::Vmf;
-use crate::integrator::path_space::kernel::basis;
+use crate::integrator::path_space::reciprocal_kernel::basis;
 
 /// A fit whose weights have 1 − Σw² at or below this (one vertex carries all the weight) is
 /// degenerate.

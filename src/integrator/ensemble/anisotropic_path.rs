@@ -287,7 +287,7 @@ mod tests {
         evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch, FilmRegion,
         MisHeuristic,
     };
-    use crate::integrator::ensemble::settings::EmltSettings;
+    use crate::integrator::ensemble::emlt_settings::EmltSettings;
     use crate::scene::{load_scene, Scene};
 
     /// Film size of the test's camera (pixels per side).

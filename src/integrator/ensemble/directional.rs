@@ -27,7 +27,7 @@
 
 use glam::DVec3;
 
-use crate::integrator::path_space::kernel::basis;
+use crate::integrator::path_space::reciprocal_kernel::basis;
 
 /// The smallest concentration a fit returns (≈ uniform on the sphere).
 pub const KAPPA_MIN: f64 = 1e-6;

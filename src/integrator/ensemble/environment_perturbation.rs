@@ -25,9 +25,9 @@ use glam::DVec3;
 
 use super::anisotropic_path::GuideContext;
 use super::directional::{guided_vmf, Vmf};
+use super::emlt_settings::EnvironmentKernel;
 use super::guide::choose_weighted;
-use super::kernel::{angle_between, GreatArcKernel, StretchKernel};
-use super::settings::EnvironmentKernel;
+use super::guided_kernel::{angle_between, GreatArcKernel, StretchKernel};
 use super::tree::same_signature;
 use crate::integrator::path_space::retrace::retrace;
 use crate::integrator::path_space::{Interaction, PathContext, PathState, PathVertex, Strategy};

@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::settings::EmltSettings;
+use super::emlt_settings::EmltSettings;
 use super::similarity::{inverse_length2, place, places_similarity, Place};
 use super::tree::EnsembleTree;
 use crate::integrator::path_space::PathState;

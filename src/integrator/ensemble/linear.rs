@@ -32,14 +32,14 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
 use super::guide::{best_match, choose_weighted, GuideCounts, GuideView};
-use super::kernel::{angle_between, GreatArcKernel, StretchKernel};
+use super::guided_kernel::{angle_between, GreatArcKernel, StretchKernel};
 use super::tree::same_signature;
 use crate::integrator::path_space::caustic::{caustic_pivot, Caustic, CausticKernel};
-use crate::integrator::path_space::kernel::RasterKernel;
 use crate::integrator::path_space::lens::{lens_chain_end, offset_raster, raster_to_solid_angle, Lens};
 use crate::integrator::path_space::multichain::{
     self, further_chains_density, retrace_further_chains, MultiChain, MultiChainKernel,
 };
+use crate::integrator::path_space::reciprocal_kernel::RasterKernel;
 #[cfg(any(test, feature = "testing"))]
 use crate::integrator::path_space::retrace::retrace_measure_factor;
 use crate::integrator::path_space::retrace::{retrace, retrace_jacobian};

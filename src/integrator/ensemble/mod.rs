@@ -20,12 +20,12 @@
 pub mod anisotropic;
 pub mod anisotropic_path;
 pub mod directional;
+pub mod emlt_render;
+pub mod emlt_settings;
 pub mod environment_perturbation;
 pub mod guide;
-pub mod kernel;
+pub mod guided_kernel;
 pub mod linear;
-pub mod render;
-pub mod settings;
 pub mod similarity;
 #[cfg(test)]
 mod toy;

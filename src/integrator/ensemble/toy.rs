@@ -22,7 +22,7 @@
 
 use glam::DVec2;
 
-use super::kernel::StretchKernel;
+use super::guided_kernel::StretchKernel;
 use super::similarity::point_similarity;
 use crate::sampling::chi2::{adaptive_integrate_2d, chi2_test, Chi2Config, Chi2Outcome};
 use crate::sampling::Rng;

@@ -26,8 +26,8 @@
 //! in, so each refraction contributes its measure factor h = η_a² |cos θ_a| / (η_b² |cos θ_b|)
 //! (`density` module docs; `retrace::retrace_jacobian` includes it).
 
-use super::kernel::{DirectionKernel, RasterKernel};
 use super::path_state::{Interaction, PathState, PathVertex};
+use super::reciprocal_kernel::{DirectionKernel, RasterKernel};
 #[cfg(any(test, feature = "testing"))]
 use super::retrace::retrace_measure_factor;
 use super::retrace::{first_non_specular, retrace, retrace_jacobian};

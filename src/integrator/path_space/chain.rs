@@ -1,6 +1,6 @@
 //! `integrator = "pmlt"`: many path-space Markov chains on the render driver.
 //!
-//! - **Bootstrap** (`pss::bootstrap`, shared with the primary-sample-space methods): `bootstrap`
+//! - **Bootstrap** (`driver::bootstrap`, shared with the primary-sample-space methods): `bootstrap`
 //!   BDPT samples over the whole film, each from its own stream; a sample's target is Σ_t
 //!   luminance(w_t C_t) over its techniques, an unbiased estimate of b = ∫ f* dμ (f* = luminance
 //!   of f, the chains' target).
@@ -22,12 +22,12 @@
 
 use super::bidirectional::{Bidirectional, LengthKernel};
 use super::caustic::{Caustic, CausticKernel};
-use super::kernel::DirectionKernel;
 use super::lens::Lens;
 use super::multichain::{MultiChain, MultiChainKernel};
 use super::path_state::PathState;
-use super::portal::PortalPerturbation;
-use super::settings::PmltSettings;
+use super::pmlt_settings::PmltSettings;
+use super::portal_perturbation::PortalPerturbation;
+use super::reciprocal_kernel::DirectionKernel;
 use super::strategy::{Entry, Mutation, StrategySet};
 use super::PathContext;
 use serde::{Deserialize, Serialize};
@@ -38,7 +38,7 @@ use crate::integrator::bdpt::{
     connect_all, generate_camera_subpath, generate_light_subpath, BdptContext, ConnectScratch, FilmRegion, Vertex,
 };
 use crate::integrator::driver::expected_value_splats;
-use crate::integrator::pss::stats::{MltStats, StrategyStats};
+use crate::integrator::pss::mlt_stats::{MltStats, StrategyStats};
 use crate::integrator::{RenderError, RenderOutput};
 use crate::sampling::{Distribution1D, Rng};
 use crate::scene::Scene;
@@ -68,7 +68,7 @@ pub struct Pmlt {
 }
 
 /// A chain: its own stream and its current path (with its f and f*), all of which a state saves
-/// (`crate::state::UnitState`, through serde; `session`).
+/// (`crate::state::UnitState`, through serde; `pmlt_render`).
 #[derive(Serialize, Deserialize)]
 pub struct ChainUnit {
     /// The chain's index in the whole render (a shard holds some of the chains).

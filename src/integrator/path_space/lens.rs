@@ -19,8 +19,8 @@
 
 use glam::{DVec2, Vec2};
 
-use super::kernel::RasterKernel;
 use super::path_state::{Interaction, PathState, PathVertex};
+use super::reciprocal_kernel::RasterKernel;
 use super::retrace::{first_non_specular, retrace, retrace_jacobian};
 use super::strategy::Strategy;
 use super::PathContext;

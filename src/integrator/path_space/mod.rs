@@ -43,16 +43,16 @@ pub mod caustic;
 pub mod chain;
 pub mod contribution;
 pub mod density;
-pub mod kernel;
 pub mod lens;
 pub mod multichain;
 pub mod path_state;
 #[cfg(test)]
 mod perturb_tests;
-pub mod portal;
+pub mod pmlt_render;
+pub mod pmlt_settings;
+pub mod portal_perturbation;
+pub mod reciprocal_kernel;
 pub mod retrace;
-pub mod session;
-pub mod settings;
 pub mod strategy;
 #[cfg(test)]
 mod tests;
@@ -60,9 +60,9 @@ pub mod trace;
 pub mod vertex;
 
 pub use chain::{Pmlt, PmltRun};
-pub use kernel::{DirectionKernel, RasterKernel};
 pub use path_state::{Interaction, PathState, PathVertex};
-pub use settings::PmltSettings;
+pub use pmlt_settings::PmltSettings;
+pub use reciprocal_kernel::{DirectionKernel, RasterKernel};
 pub use strategy::{Entry, Mutation, Strategy, StrategySet};
 
 use crate::scene::Scene;

@@ -16,9 +16,9 @@
 //! each pivot's |cos θ| stays in the acceptance through f (its projected solid angle), as for the
 //! caustic perturbation.
 
-use super::kernel::{DirectionKernel, RasterKernel};
 use super::lens::{offset_raster, raster_to_solid_angle};
 use super::path_state::{Interaction, PathState, PathVertex};
+use super::reciprocal_kernel::{DirectionKernel, RasterKernel};
 use super::retrace::{first_non_specular, retrace, retrace_jacobian};
 use super::strategy::Strategy;
 use super::PathContext;

@@ -20,10 +20,10 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 
 use super::caustic::{caustic_pivot, Caustic, CausticKernel};
-use super::kernel::{basis, DirectionKernel, RasterKernel};
 use super::lens::Lens;
 use super::multichain::{chains, MultiChain, MultiChainKernel};
 use super::path_state::{with_role, Interaction, PathState, PathVertex};
+use super::reciprocal_kernel::{basis, DirectionKernel, RasterKernel};
 use super::retrace::retrace;
 use super::strategy::Strategy;
 use super::tests::scene;

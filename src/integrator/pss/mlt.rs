@@ -57,9 +57,9 @@ use serde::{Deserialize, Serialize};
 
 use super::inverse::{invert_technique, same_path, InversionFailure};
 use super::jump::{jump_acceptance, JumpSide};
+use super::mlt_settings::{MltSettings, MltVariant};
+use super::mlt_stats::{MltStats, MoveKind};
 use super::sampler::{MutationSettings, PssSampler};
-use super::settings::{MltSettings, MltVariant};
-use super::stats::{MltStats, MoveKind};
 use crate::film::{Accumulator, Image, SplatBuffer};
 use crate::integrator::bdpt::path::full_path;
 use crate::integrator::bdpt::{
@@ -76,7 +76,7 @@ use crate::stats::{AcceptanceCount, Counters};
 
 mod bootstrap_sample;
 mod depth_choice;
-mod render;
+mod mlt_render;
 use bootstrap_sample::{technique_target, PrimarySource};
 use depth_choice::{BEstimate, LargeStepTotals};
 

@@ -1,12 +1,11 @@
 //! Primary-sample-space Markov chain methods: the shared Kelemen sampler, PSSMLT, MMLT and RJMLT.
 
-pub mod bootstrap;
 pub mod inverse;
 pub mod jump;
 pub mod mlt;
+pub mod mlt_settings;
+pub mod mlt_stats;
 pub mod sampler;
-pub mod settings;
-pub mod stats;
 /// Test-only: the 1D reversible-jump validation chains (behind the `testing` feature).
 #[cfg(any(test, feature = "testing"))]
 pub mod validation_1d;

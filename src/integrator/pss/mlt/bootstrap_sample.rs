@@ -38,8 +38,8 @@ use super::{
 use crate::integrator::bdpt::{
     evaluate_technique, generate_camera_subpath, generate_light_subpath, BdptContext, FilmRegion, TechniqueSample,
 };
+use crate::integrator::pss::mlt_settings::MltVariant;
 use crate::integrator::pss::sampler::PssSampler;
-use crate::integrator::pss::settings::MltVariant;
 use crate::sampling::{Rng, SamplerKind, SobolStream, UniformSource};
 use crate::spectrum::{is_finite, luminance};
 use crate::stats::Counters;
@@ -337,7 +337,7 @@ mod tests {
     use std::path::Path;
 
     use super::*;
-    use crate::integrator::pss::settings::MltSettings;
+    use crate::integrator::pss::mlt_settings::MltSettings;
 
     fn load(name: &str) -> crate::scene::Scene {
         let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.toml"));

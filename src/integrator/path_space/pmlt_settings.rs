@@ -1,11 +1,11 @@
 //! Settings of `integrator = "pmlt"`: the `[integrator]` table's keys with their defaults, and their
-//! validation (the bounds are the primary-sample-space family's, `pss::settings`).
+//! validation (the bounds are the primary-sample-space family's, `pss::mlt_settings`).
 
 use serde::{Deserialize, Serialize};
 
-use super::kernel::RasterKernel;
+use super::reciprocal_kernel::RasterKernel;
 use crate::integrator::bdpt::MisHeuristic;
-use crate::integrator::pss::settings::{MAX_BOOTSTRAP, MAX_CHAINS, MAX_DEPTH};
+use crate::integrator::pss::mlt_settings::{MAX_BOOTSTRAP, MAX_CHAINS, MAX_DEPTH};
 use crate::integrator::{settings_from_table, RenderError};
 
 /// Settings of path-space MLT.

@@ -34,29 +34,29 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use super::anisotropic_path::{AnisotropicPath, GuideContext};
+use super::emlt_settings::EmltSettings;
 use super::environment_perturbation::EnvironmentPerturbation;
 use super::guide::{GuideCounts, GuideReport, GuideView};
 use super::linear::{GuidedKernel, LinearCaustic, LinearLens, LinearMultiChain};
-use super::settings::EmltSettings;
 use crate::film::{Accumulator, Image};
 use crate::integrator::bdpt::BdptContext;
 use crate::integrator::driver::{
-    chain_output_of_state, chain_scale, layers_to_image, merge_chain_parts, run_chains, ChainIntegrator, ChainRender,
-    ChainRun, ChainStats, Clock, Driver, PassEdge, Passes, Slot, Tally, WallClock,
+    chain_scale, layers_to_image, run_chains, ChainEngine, ChainIntegrator, ChainRender, ChainRun, ChainStats, Clock,
+    Driver, PassEdge, Passes, Slot, Tally,
 };
 use crate::integrator::path_space::bidirectional::{Bidirectional, LengthKernel};
 use crate::integrator::path_space::caustic::CausticKernel;
 use crate::integrator::path_space::chain::{new_stats, step, ChainUnit, SlotState};
-use crate::integrator::path_space::kernel::RasterKernel;
 use crate::integrator::path_space::multichain::MultiChainKernel;
-use crate::integrator::path_space::session::{
+use crate::integrator::path_space::pmlt_render::{
     iterations, merged_stats, path_output, report_acceptance, BootstrapPart, PmltStats,
 };
+use crate::integrator::path_space::reciprocal_kernel::RasterKernel;
 use crate::integrator::path_space::{Entry, PathContext, Pmlt, PmltSettings, StrategySet};
-use crate::integrator::{Integrator, Progress, RenderError, RenderJob, RenderOutput};
+use crate::integrator::{Plugin, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::Distribution1D;
 use crate::scene::Scene;
-use crate::state::{RenderState, Session, Shard, StateError};
+use crate::state::{Session, Shard, StateError};
 use crate::stats::Counters;
 
 /// The guided strategies with counts: linear lens, linear caustic, linear multi-chain, anisotropic
@@ -250,43 +250,8 @@ impl ChainIntegrator for Emlt {
         }
         Ok(output)
     }
-}
 
-impl Integrator for Emlt {
-    fn name(&self) -> &'static str {
-        "emlt"
-    }
-
-    fn settings_json(&self) -> serde_json::Value {
-        serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
-    }
-
-    fn run_session(
-        &self,
-        scene: &Scene,
-        job: &RenderJob,
-        progress: &dyn Progress,
-        session: &Session,
-        save: bool,
-    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
-        let run = self.render_on_clock(scene, job, progress, session, save, Arc::new(WallClock::new()))?;
-        Ok((run.output, run.state))
-    }
-
-    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
-        chain_output_of_state(self, state)
-    }
-
-    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
-        merge_chain_parts::<Emlt>(parts)
-    }
-}
-
-impl Emlt {
-    /// The render under `session` with its time read from `clock` (the wall clock in
-    /// `run_session`; a fake one in tests of the time budget), with its unnormalised film and,
-    /// with `save`, the state reached. A shard `k/N` must hold a pair: k < `pairs`.
-    pub fn render_on_clock(
+    fn run_on_clock(
         &self,
         scene: &Scene,
         job: &RenderJob,
@@ -304,6 +269,19 @@ impl Emlt {
             .into());
         }
         run_chains(&EmltRender::new(self, scene, job, session.shard), job, progress, session, save, clock)
+    }
+}
+
+impl Plugin for Emlt {
+    type Engine = ChainEngine;
+    type Settings = EmltSettings;
+
+    fn plugin_name(&self) -> &'static str {
+        "emlt"
+    }
+
+    fn settings(&self) -> &EmltSettings {
+        &self.settings
     }
 }
 

@@ -15,17 +15,18 @@ use super::{BEstimate, Bootstrap, ChainUnit, Mlt, MltRun, SlotState, SubChain, C
 use super::{PathState, SUBCHAIN_SEED_SALT};
 use crate::film::{Accumulator, Image};
 use crate::integrator::bdpt::BdptContext;
+use crate::integrator::driver::bootstrap::{run_bootstrap, run_shared_bootstrap, variance_of_mean};
 use crate::integrator::driver::{
-    chain_output_of_state, merge_chain_parts, run_chains, ChainBootstrap, ChainIntegrator, ChainRender, ChainStats,
-    Driver, Slot, Tally, WallClock,
+    run_chains, ChainBootstrap, ChainEngine, ChainIntegrator, ChainRender, ChainRun, ChainStats, Clock, Driver, Slot,
+    Tally, WallClock,
 };
-use crate::integrator::pss::bootstrap::{run_bootstrap, run_shared_bootstrap, variance_of_mean};
+use crate::integrator::pss::mlt_settings::MltSettings;
+use crate::integrator::pss::mlt_stats::{MltStats, MoveStats};
 use crate::integrator::pss::sampler::PssSampler;
-use crate::integrator::pss::stats::{MltStats, MoveStats};
-use crate::integrator::{Integrator, Progress, RenderError, RenderJob, RenderOutput};
+use crate::integrator::{Plugin, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::{Distribution1D, Rng};
 use crate::scene::Scene;
-use crate::state::{RenderState, Session, StateError};
+use crate::state::{Session, StateError};
 use crate::stats::{AcceptanceCount, Counters};
 
 /// The bootstrap's outcome: per depth the sum of the targets of `paths` uniform samples, and the
@@ -109,36 +110,30 @@ impl ChainIntegrator for Mlt {
         slot.count_films = stats.count_films;
         Ok(self.output(film, units, slot, boot, tally))
     }
-}
 
-impl Integrator for Mlt {
-    fn name(&self) -> &'static str {
-        self.variant.name()
-    }
-
-    fn settings_json(&self) -> serde_json::Value {
-        serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
-    }
-
-    fn run_session(
+    fn run_on_clock(
         &self,
         scene: &Scene,
         job: &RenderJob,
         progress: &dyn Progress,
         session: &Session,
         save: bool,
-    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
-        let run =
-            run_chains(&MltRender::new(self, scene, job), job, progress, session, save, Arc::new(WallClock::new()))?;
-        Ok((run.output, run.state))
+        clock: Arc<dyn Clock>,
+    ) -> Result<ChainRun, RenderError> {
+        run_chains(&MltRender::new(self, scene, job), job, progress, session, save, clock)
+    }
+}
+
+impl Plugin for Mlt {
+    type Engine = ChainEngine;
+    type Settings = MltSettings;
+
+    fn plugin_name(&self) -> &'static str {
+        self.variant.name()
     }
 
-    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
-        chain_output_of_state(self, state)
-    }
-
-    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
-        merge_chain_parts::<Mlt>(parts)
+    fn settings(&self) -> &MltSettings {
+        &self.settings
     }
 }
 

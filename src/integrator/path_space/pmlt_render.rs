@@ -5,7 +5,7 @@
 //! `ChainPart` of [`BootstrapPart`] (b's sum, shared by every chain and the normalisation),
 //! [`PmltStats`] (the slots' statistics merged, whose iteration counts the normalisation divides
 //! by) and the chains (random stream and current path with its f and f*, written through
-//! `UnitState`). Ensemble MLT shares the bootstrap, the start and the output (`ensemble::render`).
+//! `UnitState`). Ensemble MLT shares the bootstrap, the start and the output (`ensemble::emlt_render`).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
@@ -13,19 +13,19 @@ use std::sync::{Arc, OnceLock};
 use serde::{Deserialize, Serialize};
 
 use super::chain::{new_stats, step, ChainUnit, Pmlt, PmltRun, SlotState};
-use super::{PathContext, StrategySet};
+use super::{PathContext, PmltSettings, StrategySet};
 use crate::film::{Accumulator, Image};
 use crate::integrator::bdpt::BdptContext;
+use crate::integrator::driver::bootstrap::run_bootstrap;
 use crate::integrator::driver::{
-    chain_output_of_state, chain_scale, merge_chain_parts, run_chains, ChainBootstrap, ChainIntegrator, ChainRender,
-    ChainStats, Driver, Slot, Tally, WallClock,
+    chain_scale, run_chains, ChainBootstrap, ChainEngine, ChainIntegrator, ChainRender, ChainRun, ChainStats, Clock,
+    Driver, Slot, Tally, WallClock,
 };
-use crate::integrator::pss::bootstrap::run_bootstrap;
-use crate::integrator::pss::stats::MltStats;
-use crate::integrator::{Integrator, Progress, RenderError, RenderJob, RenderOutput};
+use crate::integrator::pss::mlt_stats::MltStats;
+use crate::integrator::{Plugin, Progress, RenderError, RenderJob, RenderOutput};
 use crate::sampling::Distribution1D;
 use crate::scene::Scene;
-use crate::state::{RenderState, Session, StateError};
+use crate::state::{Session, StateError};
 use crate::stats::{AcceptanceCount, Counters};
 
 /// The bootstrap's outcome: the sum of the targets of `paths` BDPT samples (b = sum / paths).
@@ -93,36 +93,30 @@ impl ChainIntegrator for Pmlt {
         let image = |n| film.to_image(chain_scale(boot.b(), pixels, n));
         Ok(path_output(image, pixels, stats, boot, self.settings.chains, tally))
     }
-}
 
-impl Integrator for Pmlt {
-    fn name(&self) -> &'static str {
-        "pmlt"
-    }
-
-    fn settings_json(&self) -> serde_json::Value {
-        serde_json::to_value(&self.settings).unwrap_or(serde_json::Value::Null)
-    }
-
-    fn run_session(
+    fn run_on_clock(
         &self,
         scene: &Scene,
         job: &RenderJob,
         progress: &dyn Progress,
         session: &Session,
         save: bool,
-    ) -> Result<(RenderOutput, Option<RenderState>), RenderError> {
-        let run =
-            run_chains(&PmltRender::new(self, scene, job), job, progress, session, save, Arc::new(WallClock::new()))?;
-        Ok((run.output, run.state))
+        clock: Arc<dyn Clock>,
+    ) -> Result<ChainRun, RenderError> {
+        run_chains(&PmltRender::new(self, scene, job), job, progress, session, save, clock)
+    }
+}
+
+impl Plugin for Pmlt {
+    type Engine = ChainEngine;
+    type Settings = PmltSettings;
+
+    fn plugin_name(&self) -> &'static str {
+        "pmlt"
     }
 
-    fn output_of_state(&self, state: &RenderState) -> Result<RenderOutput, RenderError> {
-        chain_output_of_state(self, state)
-    }
-
-    fn merge_parts(&self, parts: &[&[u8]]) -> Result<Vec<u8>, RenderError> {
-        merge_chain_parts::<Pmlt>(parts)
+    fn settings(&self) -> &PmltSettings {
+        &self.settings
     }
 }
 

@@ -12,7 +12,7 @@
 //! its fixed ensemble that the guided strategies read: Y's vertex places and the tree). Every
 //! product is checked; an overflow is itself a refusal.
 
-use super::pss::settings::{MltSettings, MltVariant};
+use super::pss::mlt_settings::{MltSettings, MltVariant};
 use super::RenderError;
 use crate::job::memory::{add, mul, RenderMemory, SceneMemory};
 
@@ -98,7 +98,7 @@ pub fn pmlt_memory(params: &toml::Table, width: u32, height: u32) -> Result<Rend
 /// the view of Y (ensemble_size paths: their vertex places, place starts and tree order). Y's
 /// paths move into the view, so they are not counted twice.
 pub fn emlt_memory(params: &toml::Table, width: u32, height: u32) -> Result<RenderMemory, RenderError> {
-    let settings = crate::integrator::ensemble::settings::EmltSettings::from_params(params)?;
+    let settings = crate::integrator::ensemble::emlt_settings::EmltSettings::from_params(params)?;
     let (film, pass_buffers) = film_and_pass(width, height, settings.pairs)?;
     let bootstrap = mul(settings.bootstrap, BOOTSTRAP_PATH_BYTES, "the bootstrap")?;
     let vertices = settings.max_depth as u64 + 2;

@@ -33,7 +33,7 @@ pub const RJMLT_LARGE_STEP_PROBABILITY: f64 = 0.1;
 pub const RJMLT_JUMP_PROBABILITY: f64 = 0.05;
 
 /// The longest path, in scattering events: 1024. MMLT and RJMLT keep a sub-chain, a b_d and a film
-/// layer per depth (`integrator::memory`), so the depth multiplies the render's memory
+/// layer per depth (`integrator::memory_estimate`), so the depth multiplies the render's memory
 /// (`max_depth = 100000` aborted on allocation); and past 1024 bounces even an albedo of 0.99
 /// leaves 0.99^1024 ≈ 3·10^-5 of a path's throughput, below what the image can show.
 pub const MAX_DEPTH: u32 = 1024;

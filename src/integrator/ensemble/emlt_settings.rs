@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use super::directional::KAPPA_MAX;
 use crate::integrator::bdpt::MisHeuristic;
-use crate::integrator::pss::settings::{MAX_BOOTSTRAP, MAX_CHAINS, MAX_DEPTH};
+use crate::integrator::pss::mlt_settings::{MAX_BOOTSTRAP, MAX_CHAINS, MAX_DEPTH};
 use crate::integrator::{settings_from_table, RenderError};
 
 /// Which guided kernel the environment perturbation uses (`environment`'s module docs).

@@ -64,8 +64,8 @@
 use glam::DVec3;
 
 use super::density::{trace, Side};
-use super::kernel::DirectionKernel;
 use super::path_state::{with_role, Interaction, PathState, PathVertex};
+use super::reciprocal_kernel::DirectionKernel;
 use super::strategy::Strategy;
 use super::PathContext;
 use crate::geometry::Ray;
