@@ -14,19 +14,24 @@
 //!
 //! **The anisotropic path perturbation's weight is 8 here, not the default 2.** It is suitable only
 //! for paths with two non-specular vertices before a connectible one (depth ≥ 2), which on the
-//! boxes are about a quarter of the chains' states; at the default weights it made 7% of the
-//! mutations (about 4,000 accepted of 262,144 per render) and a wrong reverse density
-//! (`AnisotropicPath::reverse_reuses_forward_fit`, the toy test's wrong variant) was invisible
-//! on all three boxes (worst |z| 1.46 / 0.51 / 1.29 on 2×2, 3.01 / 2.17 / 2.69 on 4×4; measured
-//! 2026-12-03): the linear lens and the bidirectional mutation dilute it. At weight 8 it makes
-//! 15% of the mutations (7,000 accepted) and the χ² of the same test rejects the wrong variant on
-//! the box at 4× the mutations in every seed set measured
-//! (`all_strategies_agree_on_cornell_box_and_reusing_the_forward_fit_does_not`; at 1× the |z| test
-//! passed it in 3 of 5 seed sets). A strategy's correctness does not depend on its selection
-//! weight, so this tests what the default runs.
+//! boxes are about a quarter of the chains' states; at the default weights it makes 7% of the
+//! mutations (about 4,000 accepted of 262,144 per render), diluted by the linear lens and the
+//! bidirectional mutation; at weight 8 it makes 15% (7,000 accepted). A strategy's correctness does
+//! not depend on its selection weight, so this tests what the default runs.
+//!
+//! **No scene-level wrong variant of the anisotropic path perturbation is asserted here.** Its
+//! reverse density reusing x̄'s similarity weights (`AnisotropicPath::reverse_reuses_forward_fit`)
+//! differs from the correct one by more than 10% in about a third of the moves, but with Eq. 8 in
+//! units of the path's mean edge length L (`integrator::ensemble::similarity`) every guide of the
+//! box lies within about L, the fits at x̄ and ȳ differ without a direction that favours one side,
+//! and the error nearly cancels in the image: the box's χ² passes the variant at 4× the mutations
+//! (measured 2026-12-08: T/bound 0.16, 0.19, 0.16 over three seed sets; anisotropic perturbations
+//! only, 0.39 at 1×). Its control is the library test
+//! `integrator::ensemble::anisotropic_path::tests`, which checks the reverse density on real box
+//! states, and the toy ensemble `integrator::ensemble::toy_anisotropic`, whose χ² rejects it.
 
 use crate::common::agreement::{image_shares_chi2_false_failure_rate, GRID};
-use crate::common::ensemble::{emlt_agrees_with_reference_at, emlt_renders, emlt_with, share_test, ShareTest, SIZE};
+use crate::common::ensemble::{emlt_agrees_with_reference_at, emlt_with, ShareTest, SIZE};
 use crate::common::scenes::{reference, scene};
 
 use plexus::integrator::{create, Budget, NoProgress, RenderJob};
@@ -113,12 +118,10 @@ fn all_strategies_agree(
     (test, stats)
 }
 
-/// Trials of the simulated null in [`all_strategies_agree_on_cornell_box_and_reusing_the_forward_fit_does_not`].
+/// Trials of the simulated null in [`all_strategies_agree_on_cornell_box`].
 const NULL_TRIALS: u64 = 200_000;
 
-/// The Cornell box; the χ² bound's false-failure rate under this run's own covariance; and the
-/// anisotropic path perturbation whose reverse density reuses x̄'s fit
-/// (`AnisotropicPath::reverse_reuses_forward_fit`) fails the same test's χ² at 4× the mutations.
+/// The Cornell box, and the χ² bound's false-failure rate under this run's own covariance.
 ///
 /// **The χ² bound by simulation**: `NULL_TRIALS` agreements simulated with the correct renders'
 /// share covariance and the reference's shares and noise (`shares_chi2_false_failure_rate`): the
@@ -127,24 +130,10 @@ const NULL_TRIALS: u64 = 200_000;
 /// estimated variances ignored) must fail more often than that: the simulation can tell a wrong
 /// bound.
 ///
-/// **Why 4× for the wrong variant**: its error is a few per cent of the light moved between several
-/// regions (the centre and right-hand regions gain, the bottom-right corner loses); at 262,144
-/// mutations a region's share noise is about as large, so the same renders' worst |z| and χ² pass
-/// it in some seed sets (docs/lab/mlt.md, "negative controls' power": the |z| ≥ 5 control passed it
-/// in 3 of 5 seed sets). At 4× the noise halves and the χ² rejects it in every seed set measured,
-/// while the correct code at 4× passes it (measured, not run here: the χ² includes the reference's
-/// noise, which does not shrink with the method's mutations).
-///
-/// Measured (2026-12-04, load ~10–15; seed offsets 3, 1001, 2002, 3003, 4004 of `emlt_renders_seeded`,
-/// 3 the test's): correct worst |z| 0.65 (2×2, power 7.0–10.9) / 1.92 (4×4), χ² T = 17.2 (bound
-/// 79.9, p = 0.57; T 14.7–35.3, p ≥ 0.07 over the five seed sets); the simulated false-failure rate
-/// 3.4e-4 (plain χ²₁₅: 4.3e-2). The wrong variant at 4×: T = 288 / 308 / 381 / 282 / 300 against
-/// bounds 127 / 146 / 167 / 129 / 119 (T/bound 2.1–2.5, p ≤ 3e-10), worst 4×4 |z| 7.3–8.4; the
-/// correct code at 4× T = 14.2 / 15.7 (p 0.73 / 0.67). At 1× the wrong variant's 4×4 |z| was
-/// 7.38 / 2.81 / 4.18 / 5.57 / 4.72 (the |z| ≥ 5 control passed it 3 times) and its χ² T 90 / 19 /
-/// 70 / 131 / 81 against bounds 72–80 (passed twice): hence 4×. The test costs 52 CPU s.
+/// Measured (2026-12-08, load ~9; the test's seeds): worst |z| 1.46 (2×2) / 2.11 (4×4), χ² T =
+/// 14.7 (bound 86.7, p = 0.66); the simulated false-failure rate 5.95e-4 (plain χ²₁₅: 4.8e-2).
 #[test]
-fn all_strategies_agree_on_cornell_box_and_reusing_the_forward_fit_does_not() {
+fn all_strategies_agree_on_cornell_box() {
     let name = "cornell-box";
     let (test, _) = all_strategies_agree(name, (SIZE, SIZE), MPP, &["linear_lens", "anisotropic_path"]);
     let (rate, plain) = image_shares_chi2_false_failure_rate(&test.regions, &reference(name), GRID, NULL_TRIALS, 1);
@@ -153,12 +142,6 @@ fn all_strategies_agree_on_cornell_box_and_reusing_the_forward_fit_does_not() {
     );
     assert!(rate < 1e-3, "the χ² bound fails {rate:.2e} of simulated agreements");
     assert!(plain > 1e-3, "the simulation did not tell the plain χ²₁₅ bound ({plain:.2e}) from Box's");
-    let mut wrong = emlt_with(ALL);
-    wrong.anisotropic_path.reverse_reuses_forward_fit = true;
-    let (images, _) = emlt_renders(&scene(name, SIZE), &wrong, 4 * MPP);
-    let what = format!("emlt reusing x̄'s fit for the reverse on {name}, 4× the mutations");
-    let wrong = share_test(&what, &images, &reference(name), false);
-    assert!(!wrong.chi2.passes(), "reusing x̄'s fit passed the χ²: {}", wrong.summary());
 }
 
 /// The glossy Cornell box (rough gold, rough-coated plastic: anisotropic fits at glossy vertices).
@@ -193,7 +176,7 @@ fn all_strategies_agree_on_cornell_glass() {
 /// reuses x̄'s similarity weights (x̄'s κ about ȳ's direction; x̄'s guide selection probability for
 /// the hemispherical kernel) gave worst |z| 1.33 / 2.22 and 1.36 / 2.15 (measured once, not kept
 /// as a switch): the weights hardly change over one move. The kernels' own tests
-/// (`integrator::ensemble::{directional, kernel}`) reject their wrong densities.
+/// (`integrator::ensemble::{directional, guided_kernel}`) reject their wrong densities.
 #[test]
 fn all_strategies_agree_on_the_environment_scene() {
     for kernel in ["directional", "hemispherical"] {

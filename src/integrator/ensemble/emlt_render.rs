@@ -188,10 +188,7 @@ impl ChainStats for EmltStats {
     fn absorb(&mut self, other: &EmltStats) {
         self.path.absorb(&other.path);
         for (a, b) in self.guided.iter_mut().zip(&other.guided) {
-            a.guided += b.guided;
-            a.fallback += b.fallback;
-            a.signature_changed += b.signature_changed;
-            a.similarity_seconds += b.similarity_seconds;
+            a.absorb(b);
         }
         self.tree_rebuild_seconds += other.tree_rebuild_seconds;
         self.signatures = self.signatures.max(other.signatures);

@@ -187,6 +187,7 @@ impl LinearLens {
         let guide = subset[at];
         let v = view.paths[guide as usize].raster.as_dvec2();
         let stretch = StretchKernel { alpha: view.alpha(subset) };
+        kernel.counts.count_alpha(stretch.alpha, &view.settings);
         let (r, _) = stretch.sample(path.raster.as_dvec2(), v, rng.uniform_f64());
         Some((guide, offset_raster(ctx, path.raster, r - path.raster.as_dvec2())?))
     }
@@ -338,6 +339,7 @@ impl Strategy for LinearCaustic {
             let guide = subset[best_match(&w)?];
             let (w1, w2) = Self::directions(path, &view.paths[guide as usize], j);
             let arc = GreatArcKernel { stretch: StretchKernel { alpha: view.alpha(subset) } };
+            kernel.counts.count_alpha(arc.stretch.alpha, &view.settings);
             let (dir, _) = arc.sample(w1, w2, rng.uniform_f64())?;
             let new = retrace(ctx, x, j, 1, &x[j].vertex, dir.as_vec3(), counters)?;
             let vertices: Vec<PathVertex> =

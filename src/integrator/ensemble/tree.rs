@@ -27,6 +27,15 @@
 //! move must see the same Υ: the guided strategies reject any proposal whose signature differs from
 //! the current path's, and record the offset in their move.
 //!
+//! Each bucket is ordered along the Morton (Z-order) curve of its paths' raster positions, so that
+//! M consecutive members are a compact patch of the film wherever the offset starts: the spread
+//! b_res of Υ then measures how densely the signature covers the film (a bucket of n paths spread
+//! over the film gives patches of about M/n of it; a signature clustered in a small region gives
+//! smaller ones), which is what Sec. 3.4's α adapts to. In the order of Y's indices a slice of a
+//! large bucket is scattered over the whole film (b_res near 1) and α stays at α_s whatever the
+//! signature. Υ is still a function of Y and the recorded offset only, never of the current path
+//! beyond its signature, so neither Υ's nor α's probability enters the acceptance ratio.
+//!
 //! M defaults to 32 (`EmltSettings::subset_size`): the paper leaves M to its supplementary material;
 //! 32 keeps a linear lens proposal's similarity weights (one Eq. 9 product per member of Υ) cheaper
 //! than the path evaluation it guides, while a bucket's spread on the film (b_res, Sec. 3.4) is
@@ -52,6 +61,23 @@ fn interaction_code(interaction: Interaction) -> u8 {
     }
 }
 
+/// The Morton (Z-order) code of a raster position: x and y in 1/16 of a pixel (clamped to
+/// [0, 2³²)), their bits interleaved (x in the even bits).
+pub fn morton(raster: glam::Vec2) -> u64 {
+    fn spread(v: u32) -> u64 {
+        let mut v = v as u64;
+        v = (v | (v << 16)) & 0x0000_ffff_0000_ffff;
+        v = (v | (v << 8)) & 0x00ff_00ff_00ff_00ff;
+        v = (v | (v << 4)) & 0x0f0f_0f0f_0f0f_0f0f;
+        v = (v | (v << 2)) & 0x3333_3333_3333_3333;
+        v = (v | (v << 1)) & 0x5555_5555_5555_5555;
+        v
+    }
+    // `as` saturates: NaN and negatives to 0, beyond the range to u32::MAX.
+    let q = |c: f32| (c * 16.0) as u32;
+    spread(q(raster.x)) | (spread(q(raster.y)) << 1)
+}
+
 /// Whether two paths have the same signature (length and every vertex's type).
 pub fn same_signature(a: &PathState, b: &PathState) -> bool {
     a.len() == b.len() && a.vertices.iter().zip(&b.vertices).all(|(x, y)| x.interaction == y.interaction)
@@ -60,7 +86,8 @@ pub fn same_signature(a: &PathState, b: &PathState) -> bool {
 /// The index over an ensemble's paths (module docs).
 #[derive(Debug, Default)]
 pub struct EnsembleTree {
-    /// Path indices sorted by signature: each bucket is a contiguous range.
+    /// Path indices sorted by signature, then by the Morton code of the raster position (module
+    /// docs): each bucket is a contiguous range.
     order: Vec<u32>,
     buckets: HashMap<Vec<u8>, (u32, u32)>,
 }
@@ -68,14 +95,18 @@ pub struct EnsembleTree {
 impl EnsembleTree {
     /// The tree over `paths` (paths with f = 0 are left out: they guide nothing).
     pub fn build(paths: &[&PathState]) -> EnsembleTree {
-        let mut keyed: Vec<(Vec<u8>, u32)> =
-            paths.iter().enumerate().filter(|(_, p)| p.f_star > 0.0).map(|(i, p)| (signature(p), i as u32)).collect();
+        let mut keyed: Vec<(Vec<u8>, u64, u32)> = paths
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.f_star > 0.0)
+            .map(|(i, p)| (signature(p), morton(p.raster), i as u32))
+            .collect();
         keyed.sort();
         let mut buckets: HashMap<Vec<u8>, (u32, u32)> = HashMap::new();
-        for (at, (sig, _)) in keyed.iter().enumerate() {
+        for (at, (sig, _, _)) in keyed.iter().enumerate() {
             buckets.entry(sig.clone()).and_modify(|(_, len)| *len += 1).or_insert((at as u32, 1));
         }
-        EnsembleTree { order: keyed.into_iter().map(|(_, i)| i).collect(), buckets }
+        EnsembleTree { order: keyed.into_iter().map(|(_, _, i)| i).collect(), buckets }
     }
 
     /// The indices of the paths with `path`'s signature (empty when none).
