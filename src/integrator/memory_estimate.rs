@@ -132,7 +132,13 @@ mod tests {
         let m = mlt_memory(MltVariant::Mmlt, &params, 10, 10).expect("small");
         assert_eq!(m.film, 100 * 8 * 24 + 100 * 12);
         assert_eq!(m.chains, 1000 * 8 * 12 + 10 * 8 * 9 * 128);
+        // pssmlt: its chains' layer, and by default (`direct_emission = "camera"`) the camera
+        // estimator's depth-0 layer beside it; with depth 0 in the chains, the one layer.
         let pssmlt = mlt_memory(MltVariant::Pssmlt, &params, 10, 10).expect("small");
+        assert_eq!(pssmlt.film, 100 * 2 * 24 + 100 * 12);
+        let mut in_chains = params.clone();
+        in_chains.insert("direct_emission".into(), "chains".into());
+        let pssmlt = mlt_memory(MltVariant::Pssmlt, &in_chains, 10, 10).expect("small");
         assert_eq!(pssmlt.film, 100 * 24 + 100 * 12);
         // pmlt: one film layer, the bootstrap's targets, two paths of max_depth + 2 vertices a chain.
         let pmlt = pmlt_memory(&params, 10, 10).expect("small");
