@@ -36,9 +36,9 @@ pub enum Budget {
 pub struct RenderJob {
     pub budget: Budget,
     pub seed: u64,
-    /// Number of worker threads. The same seed and thread count give a bit-identical result; for
-    /// pt, BDPT and light tracing the film (and so the image) is the same for any thread count
-    /// (`integrator::driver`'s render model), MLT's not yet (its films are still per-thread state).
+    /// Number of worker threads. The film (and so the image) depends on the seed and the work
+    /// units only, not on the thread count (`integrator::driver`'s render model: splats are applied
+    /// in unit order): tiles for pt, BDPT and light tracing, chains for the Markov chain methods.
     pub threads: usize,
 }
 
