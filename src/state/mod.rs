@@ -65,7 +65,7 @@ pub const PLEXUS_VERSION: &str = env!("CARGO_PKG_VERSION");
 /// blend two estimators. Bump it with every change that moves an image rendered with the same
 /// scene, seed, settings and threads; `tests/images/golden.rs` renders each integrator once and fails
 /// until it is bumped (its table records the images of this revision).
-pub const SAMPLING_REVISION: u32 = 3;
+pub const SAMPLING_REVISION: u32 = 4;
 /// The largest state file read: far beyond any film the memory checks allow, small enough that a
 /// corrupt length prefix cannot make the reader allocate without bound.
 const MAX_STATE_BYTES: u64 = 1 << 40;
